@@ -1,0 +1,41 @@
+"""In-memory records handed from the data agent to the clip writer: one per 10 Hz frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class CameraFrame:
+    """One camera's images at one frame.
+
+    ``rgb`` is (H, W, 3) uint8 in **RGB** order. The dense labels exist for the six surround cameras only:
+    ``depth`` (H, W) float32 metres (linear, along the optical axis), ``semantic`` (H, W) uint8 CARLA tag
+    ids, ``instance`` (H, W) uint16 object ids (0 = none; low/high byte go to the G/B channels on disk).
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray | None = None
+    semantic: np.ndarray | None = None
+    instance: np.ndarray | None = None
+
+
+@dataclass
+class FrameRecord:
+    """Everything written for one frame of a clip.
+
+    ``anno`` is the complete annotation dict in Bench2Drive's key order (format.md §3). ``cameras`` is keyed
+    by camera folder name (``front`` … ``back_right``, ``top_down``). ``lidar`` is (N, 3) float in the
+    left-handed CARLA **ego** frame, as stored in the LAZ files. ``radar`` maps the h5 dataset names
+    (``radar_front`` …) to (N, 4) arrays [depth m, altitude rad, azimuth rad, velocity m/s].
+    ``expert_assessment`` is the optional expert vector stored at index ``frame − 1``.
+    """
+
+    index: int
+    anno: dict
+    cameras: dict[str, CameraFrame] = field(default_factory=dict)
+    lidar: np.ndarray | None = None
+    radar: dict[str, np.ndarray] | None = None
+    expert_assessment: np.ndarray | None = None

@@ -208,6 +208,23 @@ class Snapshot:
 
 
 @dataclass(frozen=True)
+class ScenarioHint:
+    """What a running scenario tells the privileged expert (PDM-Lite reads the same from the scenario runner).
+
+    ``scenario_type`` is the XML type (``Accident``, ``YieldToEmergencyVehicle`` ...); ``first_actor_id`` /
+    ``last_actor_id`` are the obstacle actors the expert plans around (same id when there is one);
+    ``direction`` is the obstacle side (``left`` / ``right``); ``offset`` is InvadingTurn's lateral offset (m).
+    """
+
+    scenario_type: str
+    first_actor_id: int | None
+    last_actor_id: int | None
+    direction: str = "right"
+    offset: float | None = None
+    extra: Mapping[str, float | int | str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class ImuReading:
     """IMU at the rig's mount: accelerometer m/s² and gyroscope rad/s in sensor axes, compass in radians."""
 

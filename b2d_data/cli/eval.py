@@ -1,0 +1,145 @@
+"""``b2d-eval``: Bench2Drive metrics of Leaderboard result files.
+
+``b2d-eval summary RESULTS... [--routes XML] [--metric-dir DIR] [--maps-dir DIR] [--num-routes N]
+[--out PATH.json] [--names NAME...] [--strict] [--corrected-smoothness] [--merge]``
+
+Each RESULT is one result set, shown as one column: a result JSON file (per-process checkpoint or
+merged.json), a directory of per-process files (every ``*.json`` but merged.json), or several files
+joined with ``+`` (``eval_0.json+eval_1.json``). ``--merge`` makes all RESULTS one set instead (handy
+with a shell glob). The table goes to stdout, every figure to the JSON file, and, when ``--routes`` is
+given, a bar chart of the abilities to ``<out stem>_abilities.png`` beside the JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from b2d_data.eval.junctions import MapJunctionProvider
+from b2d_data.eval.report import format_table, plot_abilities
+from b2d_data.eval.results import expand_result_argument, load_result_argument, load_result_set
+from b2d_data.eval.summary import EvalSettings, evaluate, summary_json
+from b2d_data.format.errors import B2DFormatError
+from b2d_data.scenarios.route_xml import read_routes
+
+PROG = "b2d-eval"
+DEFAULT_OUT = Path("b2d_eval_summary.json")
+
+
+def _argument_problem(args: argparse.Namespace) -> str | None:
+    """What is inconsistent between the arguments, or None."""
+    n_sets = 1 if args.merge else len(args.results)
+    if args.names is not None and len(args.names) != n_sets:
+        return f"--names gives {len(args.names)} label(s) for {n_sets} result set(s)"
+    if len(args.metric_dir) not in (0, 1, n_sets):
+        return f"--metric-dir is given {len(args.metric_dir)} times for {n_sets} result sets (give it 1 or {n_sets})"
+    if args.num_routes is not None and args.num_routes < 1:
+        return f"--num-routes must be at least 1, got {args.num_routes}"
+    if args.maps_dir is not None and not args.maps_dir.is_dir():
+        return f"--maps-dir {args.maps_dir} is not a directory"
+    return None
+
+
+def _run_summary(args: argparse.Namespace) -> int:
+    n_sets = 1 if args.merge else len(args.results)
+
+    if args.merge:
+        files: list[Path] = []
+        from_directory = False
+        for argument in args.results:
+            found, from_dir = expand_result_argument(argument)
+            files += found
+            from_directory |= from_dir
+        name = args.names[0] if args.names else Path(args.results[0]).stem
+        result_sets = [load_result_set(files, name, strict=args.strict, skip_unreadable=from_directory)]
+    else:
+        names = args.names or [None] * n_sets
+        result_sets = [load_result_argument(a, n, strict=args.strict) for a, n in zip(args.results, names)]
+
+    routes = read_routes(args.routes) if args.routes is not None else None
+    settings = EvalSettings(
+        num_routes=args.num_routes,
+        routes=routes,
+        routes_file=args.routes,
+        corrected_smoothness=args.corrected_smoothness,
+        junctions=MapJunctionProvider(args.maps_dir) if args.maps_dir is not None else None,
+        maps_dir=args.maps_dir,
+        strict=args.strict,
+    )
+    metric_dirs: list[Path | None] = [None] * n_sets
+    if len(args.metric_dir) == 1:
+        metric_dirs = [args.metric_dir[0]] * n_sets
+    elif args.metric_dir:
+        metric_dirs = list(args.metric_dir)
+    summaries = [evaluate(rs, settings, metric_dir=md) for rs, md in zip(result_sets, metric_dirs)]
+
+    out: Path = args.out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(summary_json(summaries, settings), indent=2), encoding="utf-8")
+    print(format_table(summaries))
+    print()
+    print(f"Wrote {out}")
+    if routes is not None:
+        png = out.with_name(f"{out.stem}_abilities.png")
+        plot_abilities(summaries, png)
+        print(f"Wrote {png}")
+    else:
+        print("No abilities (and no bar chart): pass --routes with the route XML the agent ran")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``b2d-eval``; returns the exit code (1 with a one-line message on bad input)."""
+    parser = argparse.ArgumentParser(prog=PROG, description="Bench2Drive metrics of Leaderboard result files.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _summary_parser(sub)
+    args = parser.parse_args(argv)
+    problem = _argument_problem(args)
+    if problem:
+        parser.error(problem)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.ERROR, format=f"{PROG}: %(levelname)s: %(message)s"
+    )
+    try:
+        return _run_summary(args)
+    except (B2DFormatError, OSError) as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def _summary_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    summary = sub.add_parser(
+        "summary",
+        help="driving score, success rate, efficiency, smoothness and abilities of one or more result sets",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    summary.add_argument("results", nargs="+", metavar="RESULTS", help="result file, directory, or a.json+b.json")
+    summary.add_argument("--routes", type=Path, help="route XML the agent ran (enables the abilities)")
+    summary.add_argument(
+        "--metric-dir", type=Path, action="append", default=[],
+        help="folder of <save_name>/metric_info.json (enables smoothness); once for all sets or once per set",
+    )  # fmt: skip
+    summary.add_argument("--maps-dir", type=Path, help="folder of <Town>.xodr for the Traffic_Signs junction check")
+    summary.add_argument(
+        "--num-routes", type=int,
+        help="denominator of driving score and success rate (default: routes in --routes, else 220)",
+    )  # fmt: skip
+    summary.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"summary JSON to write (default {DEFAULT_OUT})")
+    summary.add_argument("--names", nargs="+", help="column label of each result set")
+    summary.add_argument("--strict", action="store_true", help="duplicate routes or a wrong record count are errors")
+    summary.add_argument(
+        "--corrected-smoothness", action="store_true",
+        help="also report smoothness with rad/s, dt 0.05 s and a real yaw acceleration (labelled 'corrected')",
+    )  # fmt: skip
+    summary.add_argument("--merge", action="store_true", help="all RESULTS form a single result set")
+    summary.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
+    return summary
+
+
+if __name__ == "__main__":
+    sys.exit(main())

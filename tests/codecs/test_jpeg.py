@@ -1,0 +1,80 @@
+"""JPEG q20 codec: round trip, BGR on disk, quality tables, corrupt files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from b2d_data.codecs.jpeg import encode_jpeg, read_jpeg, read_quantization_tables, write_jpeg
+from b2d_data.format.errors import B2DFormatError
+
+
+def smooth_rgb(h: int = 36, w: int = 64) -> np.ndarray:
+    """A smooth colour ramp: JPEG q20 keeps it within a few grey levels."""
+    v, u = np.mgrid[0:h, 0:w]
+    return np.stack([u * 255 // (w - 1), v * 255 // (h - 1), np.full_like(u, 128)], axis=-1).astype(np.uint8)
+
+
+def test_round_trip_within_q20_error(tmp_path: Path) -> None:
+    rgb = smooth_rgb()
+    path = tmp_path / "00000.jpg"
+    size = write_jpeg(path, rgb)
+    assert size == path.stat().st_size
+    back = read_jpeg(path)
+    assert back.shape == rgb.shape and back.dtype == np.uint8
+    # q20 on a smooth ramp: mean error of a few levels (measured ~2); 6 leaves room for other libjpeg builds.
+    assert np.abs(back.astype(int) - rgb).mean() < 6.0
+    assert np.array_equal(read_jpeg(path.read_bytes()), back)
+
+
+def test_rgb_is_stored_as_bgr() -> None:
+    red = np.zeros((16, 16, 3), np.uint8)
+    red[..., 0] = 255
+    # Decoding with plain OpenCV yields BGR: a red image has its energy in channel 2.
+    bgr = cv2.imdecode(np.frombuffer(encode_jpeg(red), np.uint8), cv2.IMREAD_COLOR)
+    assert bgr[..., 2].mean() > 200 and bgr[..., 0].mean() < 30
+    assert read_jpeg(encode_jpeg(red))[..., 0].mean() > 200
+
+
+def test_quality_is_20() -> None:
+    data = encode_jpeg(smooth_rgb())
+    tables = read_quantization_tables(data)
+    # IJG scaling for quality 20: factor 5000/20 = 250 %; the first entries of the standard luminance (16) and
+    # chrominance (17) tables become (16·250 + 50) // 100 = 40 and (17·250 + 50) // 100 = 43.
+    assert tables[0][0] == 40 and tables[1][0] == 43
+    bgr = cv2.cvtColor(smooth_rgb(), cv2.COLOR_RGB2BGR)
+    reference = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 20])[1].tobytes()
+    assert data == reference
+    default = cv2.imencode(".jpg", bgr)[1].tobytes()  # OpenCV's default quality is 95
+    assert read_quantization_tables(default)[0][0] != 40
+
+
+def test_reduced_decoding() -> None:
+    assert read_jpeg(encode_jpeg(smooth_rgb()), reduce=2).shape == (18, 32, 3)
+    with pytest.raises(ValueError):
+        read_jpeg(encode_jpeg(smooth_rgb()), reduce=3)
+
+
+@pytest.mark.parametrize("cut", [0.5, 0.9])
+def test_truncated_jpeg_names_the_file(tmp_path: Path, cut: float) -> None:
+    data = encode_jpeg(smooth_rgb())
+    path = tmp_path / "00007.jpg"
+    path.write_bytes(data[: int(len(data) * cut)])
+    with pytest.raises(B2DFormatError, match="00007.jpg.*truncated"):
+        read_jpeg(path)
+
+
+def test_garbage_and_missing(tmp_path: Path) -> None:
+    path = tmp_path / "bad.jpg"
+    path.write_bytes(b"not a jpeg at all")
+    with pytest.raises(B2DFormatError, match="bad.jpg"):
+        read_jpeg(path)
+    with pytest.raises(B2DFormatError, match="missing.jpg.*does not exist"):
+        read_jpeg(tmp_path / "missing.jpg")
+    with pytest.raises(B2DFormatError, match="corrupt"):
+        read_jpeg(b"\xff\xd8" + b"\x00" * 50 + b"\xff\xd9", name="x.jpg")
+    with pytest.raises(ValueError):
+        encode_jpeg(np.zeros((4, 4), np.uint8))

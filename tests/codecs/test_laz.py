@@ -1,0 +1,65 @@
+"""LAZ codec: header bytes (LAS 1.2, format 0, 1 mm, offsets = mins), round trip, empty and corrupt files."""
+
+from __future__ import annotations
+
+import io
+import struct
+from pathlib import Path
+
+import laspy
+import numpy as np
+import pytest
+
+from b2d_data.codecs.laz import encode_laz, read_laz, write_laz
+from b2d_data.format.errors import B2DFormatError
+
+
+def points(n: int = 500) -> np.ndarray:
+    rng = np.random.default_rng(3)
+    return rng.uniform([-80.0, -60.0, -2.0], [85.0, 70.0, 8.0], (n, 3))
+
+
+def test_header_bytes(tmp_path: Path) -> None:
+    pts = points()
+    path = tmp_path / "00000.laz"
+    write_laz(path, pts)
+    raw = path.read_bytes()
+    assert raw[:4] == b"LASF"
+    assert (raw[24], raw[25]) == (1, 2)  # LAS 1.2
+    assert raw[104] & 0x3F == 0 and raw[104] & 0x80  # point format 0, LAZ-compressed bit
+    assert struct.unpack("<H", raw[105:107])[0] == 20  # format 0 record length
+    assert struct.unpack("<I", raw[107:111])[0] == len(pts)
+    scales = struct.unpack("<3d", raw[131:155])
+    offsets = struct.unpack("<3d", raw[155:179])
+    assert scales == (0.001, 0.001, 0.001)
+    assert np.array_equal(offsets, pts.min(axis=0))
+
+
+def test_round_trip_within_half_a_millimetre() -> None:
+    pts = points()
+    back = read_laz(encode_laz(pts))
+    assert back.shape == pts.shape and back.dtype == np.float64
+    assert np.abs(back - pts).max() <= 0.0005 + 1e-9
+    assert read_laz(encode_laz(pts), dtype=np.float32).dtype == np.float32
+
+
+def test_only_xyz_are_filled() -> None:
+    las = laspy.read(io.BytesIO(encode_laz(points(50))))
+    for dim in ("intensity", "return_number", "classification", "scan_angle_rank", "user_data", "point_source_id"):
+        assert not np.asarray(las[dim]).any(), dim
+
+
+def test_empty_cloud() -> None:
+    back = read_laz(encode_laz(np.zeros((0, 3))))
+    assert back.shape == (0, 3)
+
+
+def test_corrupt_laz_names_the_file(tmp_path: Path) -> None:
+    data = encode_laz(points())
+    cases = {"garbage.laz": b"garbage" * 40, "half.laz": data[: len(data) // 2], "header.laz": data[:100]}
+    for name, content in cases.items():
+        (tmp_path / name).write_bytes(content)
+        with pytest.raises(B2DFormatError, match=name):
+            read_laz(tmp_path / name)
+    with pytest.raises(ValueError):
+        encode_laz(np.array([[0.0, np.nan, 1.0]]))

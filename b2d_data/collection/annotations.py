@@ -1,0 +1,506 @@
+"""Build the annotation dict of one frame (format.md §3) from the simulator's view of the world.
+
+Every field is computed the way Bench2Drive's collector computes it (tools/data_collect.py), with its quirks,
+except where a quirk is a CARLA API bug that would only lose information: walker ``speed`` holds the walker's
+real forward speed here (CARLA reports 0; loaders recompute it from finite differences either way).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from b2d_data.format.rig import ALL_CAMERAS, LIDAR, RADARS_V0, RADARS_V004, CameraSpec, Mount
+from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
+from b2d_data.maps import Map
+from b2d_data.sim.api import (
+    ActorKind,
+    ActorState,
+    RigConfig,
+    SensorData,
+    Snapshot,
+    TrafficLightInfo,
+    TrafficSignInfo,
+    VehicleControl,
+)
+
+#: Objects farther than this (2-D, from the ego) are not annotated (tools/utils.py DIS_*_SAVE).
+CAPTURE_RADIUS = 100.0
+#: Mesh-path fragments that make a static prop a "static vehicle" box.
+_STATIC_VEHICLE_MESHES = ("Car", "Truck", "Bus", "Motorcycle", "Bicycle")
+#: Props annotated as traffic signs without a trigger volume.
+_SIGN_PROPS = ("warning", "dirtdebris", "cone")
+
+
+def _r(values: np.ndarray | Sequence[float]) -> list:
+    """Nested Python floats (json cannot write numpy scalars)."""
+    return np.asarray(values, dtype=np.float64).tolist()
+
+
+def mount_transform(mount: Mount) -> Transform:
+    """The sensor pose of a rig mount relative to the ego origin."""
+    return Transform(Location(mount.x, mount.y, mount.z), Rotation(pitch=mount.pitch, yaw=mount.yaw, roll=mount.roll))
+
+
+def _waypoint_ids(world_map: Map, location: Location) -> tuple[int, int, int]:
+    """road_id, lane_id, section_id of the driving-lane waypoint nearest to a location."""
+    wp = world_map.get_waypoint(location)
+    if wp is None:
+        return -1, 0, -1
+    return int(wp.road_id), int(wp.lane_id), int(wp.section_id)
+
+
+def _distance(a: Location, b: Location) -> float:
+    return math.hypot(a.x - b.x, a.y - b.y)
+
+
+def _color(actor: ActorState) -> str | None:
+    return actor.attributes.get("color")
+
+
+def count_points_in_box(points_ego: np.ndarray | None, ego: ActorState, actor: ActorState) -> int:
+    """LiDAR points strictly inside the actor's box as Bench2Drive counts them (−1 without LiDAR).
+
+    The box is centred on the actor *origin* (not its bounding-box centre) in the ego frame, turned by the
+    relative yaw, with the half extents — the released collector's rule, kept so counts are comparable.
+    """
+    if points_ego is None:
+        return -1
+    if len(points_ego) == 0:
+        return 0
+    rel = ego.transform.inverse_transform_points(actor.location.to_array()[None, :])[0]
+    yaw = math.radians(actor.transform.rotation.yaw - ego.transform.rotation.yaw)
+    c, s = math.cos(yaw), math.sin(yaw)
+    d = points_ego - rel
+    local_x = c * d[:, 0] + s * d[:, 1]
+    local_y = -s * d[:, 0] + c * d[:, 1]
+    e = actor.bounding_box.extent
+    inside = (np.abs(local_x) < e.x) & (np.abs(local_y) < e.y) & (np.abs(d[:, 2]) < e.z)
+    return int(np.count_nonzero(inside))
+
+
+def _box_geometry(actor: ActorState) -> dict:
+    """location, rotation, bbx_loc, center, extent, world_cord of an actor's box."""
+    bbox = actor.bounding_box
+    return {
+        "location": actor.location.to_list(),
+        "rotation": actor.transform.rotation.to_anno(),
+        "bbx_loc": bbox.location.to_list(),
+        "center": actor.transform.transform_point(bbox.location).to_list(),
+        "extent": bbox.extent.to_list(),
+        "world_cord": _r(bbox.world_corners(actor.transform)),
+    }
+
+
+def _brake(actor: ActorState) -> float:
+    control = actor.control
+    return float(control.brake) if isinstance(control, VehicleControl) else 0.0
+
+
+def ego_box(world_map: Map, ego: ActorState) -> dict:
+    """The ``ego_vehicle`` entry (always first)."""
+    geo = _box_geometry(ego)
+    road_id, lane_id, section_id = _waypoint_ids(world_map, ego.location)
+    return {
+        "class": "ego_vehicle",
+        "id": str(ego.id),
+        "type_id": ego.type_id,
+        "base_type": ego.base_type,
+        "location": geo["location"],
+        "rotation": geo["rotation"],
+        "bbx_loc": geo["bbx_loc"],
+        "center": geo["center"],
+        "extent": geo["extent"],
+        "world_cord": geo["world_cord"],
+        # Bench2Drive wraps the ego's tag list in one more list.
+        "semantic_tags": [list(ego.semantic_tags)],
+        "color": _color(ego),
+        "speed": float(ego.forward_speed()),
+        "brake": _brake(ego),
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+        "world2ego": _r(ego.transform.inverse_matrix()),
+    }
+
+
+def vehicle_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
+    """A ``vehicle`` entry with state ``dynamic``."""
+    geo = _box_geometry(actor)
+    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
+    return {
+        "class": "vehicle",
+        "state": "dynamic",
+        "id": str(actor.id),
+        "location": geo["location"],
+        "rotation": geo["rotation"],
+        "bbx_loc": geo["bbx_loc"],
+        "center": geo["center"],
+        "extent": geo["extent"],
+        "world_cord": geo["world_cord"],
+        "semantic_tags": list(actor.semantic_tags),
+        "type_id": actor.type_id,
+        "color": _color(actor),
+        "base_type": actor.base_type,
+        "num_points": count_points_in_box(points_ego, ego, actor),
+        "distance": _distance(actor.location, ego.location),
+        "speed": float(actor.forward_speed()),
+        "brake": _brake(actor),
+        "light_state": actor.light_state,
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+        "world2vehicle": _r(actor.transform.inverse_matrix()),
+    }
+
+
+def static_vehicle_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
+    """A ``vehicle`` entry with state ``static`` (parked-car props)."""
+    geo = _box_geometry(actor)
+    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
+    return {
+        "class": "vehicle",
+        "state": "static",
+        "id": str(actor.id),
+        "location": geo["location"],
+        "rotation": geo["rotation"],
+        "bbx_loc": geo["bbx_loc"],
+        "center": geo["center"],
+        "extent": geo["extent"],
+        "world_cord": geo["world_cord"],
+        "semantic_tags": list(actor.semantic_tags),
+        "type_id": actor.type_id,
+        "num_points": count_points_in_box(points_ego, ego, actor),
+        "distance": _distance(actor.location, ego.location),
+        "speed": float(actor.forward_speed()),
+        "brake": 1.0,
+        "light_state": "NONE",
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+        "world2vehicle": _r(actor.transform.inverse_matrix()),
+    }
+
+
+def _bone_segments(actor: ActorState) -> list:
+    """A stick skeleton scaled to the walker's box (the builtin walkers have no skinned skeleton)."""
+    h = 2.0 * actor.bounding_box.extent.z
+    base = actor.bounding_box.location.z - actor.bounding_box.extent.z
+    w = min(actor.bounding_box.extent.y, 0.25)
+    joints = {
+        "head": (0.0, 0.0, base + 0.93 * h), "neck": (0.0, 0.0, base + 0.82 * h),
+        "pelvis": (0.0, 0.0, base + 0.52 * h), "l_hand": (0.0, -w, base + 0.50 * h),
+        "r_hand": (0.0, w, base + 0.50 * h), "l_foot": (0.0, -0.6 * w, base), "r_foot": (0.0, 0.6 * w, base),
+    }  # fmt: skip
+    pairs = (("head", "neck"), ("neck", "pelvis"), ("neck", "l_hand"), ("neck", "r_hand"),
+             ("pelvis", "l_foot"), ("pelvis", "r_foot"))  # fmt: skip
+    local = np.array([[joints[a], joints[b]] for a, b in pairs], dtype=np.float64).reshape(-1, 3)
+    return _r(actor.transform.transform_points(local).reshape(-1, 2, 3))
+
+
+def walker_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
+    """A ``walker`` entry."""
+    geo = _box_geometry(actor)
+    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
+    return {
+        "class": "walker",
+        "id": str(actor.id),
+        "location": geo["location"],
+        "rotation": geo["rotation"],
+        "bbx_loc": geo["bbx_loc"],
+        "center": geo["center"],
+        "extent": geo["extent"],
+        "world_cord": geo["world_cord"],
+        "semantic_tags": list(actor.semantic_tags),
+        "type_id": actor.type_id,
+        "gender": actor.attributes.get("gender", "male"),
+        "age": actor.attributes.get("age", "adult"),
+        "num_points": count_points_in_box(points_ego, ego, actor),
+        "distance": _distance(actor.location, ego.location),
+        "speed": float(actor.forward_speed()),
+        "bone": _bone_segments(actor),
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+        "world2ped": _r(actor.transform.inverse_matrix()),
+    }
+
+
+def _trigger_fields(transform: Transform, trigger: BoundingBox, level: BoundingBox) -> dict:
+    """World trigger-volume location, level-bbox-relative rotation sum (mod 360) and half extents."""
+    rot = [(a + b) % 360.0 for a, b in zip(level.rotation.to_anno(), trigger.rotation.to_anno())]
+    return {
+        "trigger_volume_location": transform.transform_point(trigger.location).to_list(),
+        "trigger_volume_rotation": rot,
+        "trigger_volume_extent": trigger.extent.to_list(),
+    }
+
+
+def traffic_light_box(world_map: Map, ego: ActorState, light: TrafficLightInfo, actor: ActorState | None,
+                      affects_ego: bool) -> dict:
+    """A ``traffic_light`` entry; pose fields come from the light's level bounding box."""
+    level = light.level_bbox
+    road_id, lane_id, section_id = _waypoint_ids(world_map, level.location)
+    trigger = _trigger_fields(light.transform, light.trigger_volume, level)
+    return {
+        "class": "traffic_light",
+        "id": str(light.id),
+        "location": level.location.to_list(),
+        "rotation": level.rotation.to_anno(),
+        "center": level.location.to_list(),
+        "extent": level.extent.to_list(),
+        "semantic_tags": list(actor.semantic_tags) if actor else [7],
+        "type_id": actor.type_id if actor else "traffic.traffic_light",
+        "distance": _distance(level.location, ego.location),
+        "state": int(light.state),
+        "affects_ego": bool(affects_ego),
+        **trigger,
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+    }
+
+
+def trigger_sign_box(world_map: Map, ego: ActorState, sign: TrafficSignInfo, actor: ActorState | None,
+                     affects_ego: bool) -> dict:
+    """A ``traffic_sign`` entry with a trigger volume (stop, yield, speed limit)."""
+    level = sign.level_bbox
+    road_id, lane_id, section_id = _waypoint_ids(world_map, level.location)
+    trigger = _trigger_fields(sign.transform, sign.trigger_volume, level)
+    return {
+        "class": "traffic_sign",
+        "id": str(sign.id),
+        "location": level.location.to_list(),
+        "rotation": level.rotation.to_anno(),
+        "center": level.location.to_list(),
+        "extent": level.extent.to_list(),
+        "semantic_tags": list(actor.semantic_tags) if actor else [8],
+        "type_id": sign.type_id,
+        "distance": _distance(level.location, ego.location),
+        "affects_ego": bool(affects_ego),
+        **trigger,
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+        "world2sign": _r(sign.transform.inverse_matrix()),
+    }
+
+
+def prop_sign_box(world_map: Map, ego: ActorState, actor: ActorState, affects_ego: bool) -> dict:
+    """A ``traffic_sign`` entry without trigger volume (warning boards, cones, dirt debris)."""
+    geo = _box_geometry(actor)
+    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
+    return {
+        "class": "traffic_sign",
+        "id": str(actor.id),
+        "location": geo["location"],
+        "rotation": geo["rotation"],
+        "bbx_loc": geo["bbx_loc"],
+        "center": geo["center"],
+        "extent": geo["extent"],
+        "world_cord": geo["world_cord"],
+        "semantic_tags": list(actor.semantic_tags),
+        "type_id": actor.type_id,
+        "distance": _distance(actor.location, ego.location),
+        "affects_ego": bool(affects_ego),
+        "road_id": road_id,
+        "lane_id": lane_id,
+        "section_id": section_id,
+        "world2sign": _r(actor.transform.inverse_matrix()),
+    }
+
+
+def is_static_vehicle(actor: ActorState) -> bool:
+    """A parked-car mesh prop (annotated as a static vehicle)."""
+    return actor.kind is ActorKind.PROP and any(m in actor.type_id for m in _STATIC_VEHICLE_MESHES)
+
+
+def is_sign_prop(actor: ActorState) -> bool:
+    """A prop annotated as a traffic sign without trigger volume."""
+    return actor.kind is ActorKind.PROP and any(p in actor.type_id for p in _SIGN_PROPS)
+
+
+def _ahead(ego: ActorState, location: Location) -> bool:
+    fwd = ego.transform.get_forward_vector()
+    return (location.x - ego.location.x) * fwd.x + (location.y - ego.location.y) * fwd.y > 0.0
+
+
+def _trigger_hits_route(transform: Transform, trigger: BoundingBox, route_ahead: np.ndarray) -> bool:
+    """Whether one of the upcoming route points lies inside the trigger volume enlarged 1.5×."""
+    if len(route_ahead) == 0:
+        return False
+    centre = transform.transform_point(trigger.location)
+    yaw = math.radians(transform.rotation.yaw + trigger.rotation.yaw)
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx = route_ahead[:, 0] - centre.x
+    dy = route_ahead[:, 1] - centre.y
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    ex, ey = 1.5 * max(trigger.extent.x, 0.5), 1.5 * max(trigger.extent.y, 0.5)
+    return bool(np.any((np.abs(lx) <= ex) & (np.abs(ly) <= ey)))
+
+
+def most_affecting(ego: ActorState, candidates: Sequence[tuple[int, Transform, BoundingBox]],
+                   route_ahead: np.ndarray) -> int | None:
+    """Id of the closest light/sign ahead whose trigger volume covers one of the next route points."""
+    best: tuple[float, int] | None = None
+    for actor_id, transform, trigger in candidates:
+        centre = transform.transform_point(trigger.location)
+        if not _ahead(ego, centre) or not _trigger_hits_route(transform, trigger, route_ahead):
+            continue
+        d = _distance(centre, ego.location)
+        if best is None or d < best[0]:
+            best = (d, actor_id)
+    return None if best is None else best[1]
+
+
+def nearest_prop_ahead(ego: ActorState, props: Sequence[ActorState], route_ahead: np.ndarray,
+                       lane_half_width: float = 3.5) -> int | None:
+    """The nearest sign prop ahead that stands within ``lane_half_width`` of the upcoming route."""
+    best: tuple[float, int] | None = None
+    for prop in props:
+        if not _ahead(ego, prop.location) or len(route_ahead) == 0:
+            continue
+        gap = np.min(np.hypot(route_ahead[:, 0] - prop.location.x, route_ahead[:, 1] - prop.location.y))
+        if gap > lane_half_width:
+            continue
+        d = _distance(prop.location, ego.location)
+        if best is None or d < best[0]:
+            best = (d, prop.id)
+    return None if best is None else best[1]
+
+
+def bounding_boxes(world_map: Map, snapshot: Snapshot, ego: ActorState, points_ego: np.ndarray | None,
+                   route_ahead: np.ndarray, radius: float = CAPTURE_RADIUS) -> list[dict]:
+    """All box entries of a frame, in Bench2Drive's order: ego, vehicles, static vehicles, walkers, lights, signs."""
+    near = [
+        a for a in snapshot.actors.values()
+        if a.id != ego.id and a.parent_id is None and _distance(a.location, ego.location) <= radius
+    ]  # fmt: skip
+    vehicles = [a for a in near if a.kind is ActorKind.VEHICLE]
+    statics = [a for a in near if is_static_vehicle(a)]
+    walkers = [a for a in near if a.kind is ActorKind.WALKER]
+    sign_props = [a for a in near if is_sign_prop(a) and not is_static_vehicle(a)]
+    lights = [t for t in snapshot.traffic_lights.values() if _distance(t.level_bbox.location, ego.location) <= radius]
+    signs = [s for s in snapshot.traffic_signs.values() if _distance(s.level_bbox.location, ego.location) <= radius]
+
+    light_hit = most_affecting(ego, [(t.id, t.transform, t.trigger_volume) for t in lights], route_ahead)
+    sign_hit = most_affecting(ego, [(s.id, s.transform, s.trigger_volume) for s in signs], route_ahead)
+    prop_hit = nearest_prop_ahead(ego, sign_props, route_ahead)
+
+    boxes = [ego_box(world_map, ego)]
+    boxes += [vehicle_box(world_map, ego, a, points_ego) for a in sorted(vehicles, key=lambda a: a.id)]
+    boxes += [static_vehicle_box(world_map, ego, a, points_ego) for a in sorted(statics, key=lambda a: a.id)]
+    boxes += [walker_box(world_map, ego, a, points_ego) for a in sorted(walkers, key=lambda a: a.id)]
+    actors = snapshot.actors
+    boxes += [
+        traffic_light_box(world_map, ego, t, actors.get(t.id), t.id == light_hit)
+        for t in sorted(lights, key=lambda t: t.id)
+    ]
+    boxes += [
+        trigger_sign_box(world_map, ego, s, actors.get(s.id), s.id == sign_hit)
+        for s in sorted(signs, key=lambda s: s.id)
+    ]
+    boxes += [prop_sign_box(world_map, ego, a, a.id == prop_hit) for a in sorted(sign_props, key=lambda a: a.id)]
+    return boxes
+
+
+def _camera_entry(spec: CameraSpec, world: Transform, width: int, height: int) -> dict:
+    return {
+        "location": world.location.to_list(),
+        "rotation": world.rotation.to_anno(),
+        "intrinsic": _r(spec.intrinsic(width, height)),
+        "world2cam": _r(world.inverse_matrix()),
+        "cam2ego": _r(mount_transform(spec.mount).matrix()),
+        "fov": float(spec.fov),
+        "image_size_x": int(width),
+        "image_size_y": int(height),
+    }
+
+
+def sensor_calibrations(ego: ActorState, config: RigConfig,
+                        sensor_transforms: Mapping[str, Transform] | None = None) -> dict:
+    """The ``sensors`` dict: every camera (incl. TOP_DOWN), radar and the LiDAR, in Bench2Drive's order.
+
+    World poses come from the sensors' reported transforms when given, else from the ego pose and the mount.
+    """
+    poses = dict(sensor_transforms or {})
+
+    def world_pose(sensor_id: str, mount: Mount) -> Transform:
+        if sensor_id in poses:
+            return poses[sensor_id]
+        return Transform.from_matrix(ego.transform.matrix() @ mount_transform(mount).matrix())
+
+    out: dict[str, dict] = {}
+    for spec in ALL_CAMERAS:
+        w, h = (config.top_down_width, config.top_down_height) if spec.sensor_id == "TOP_DOWN" else (
+            config.width, config.height)
+        out[spec.sensor_id] = _camera_entry(spec, world_pose(spec.sensor_id, spec.mount), w, h)
+    for radar in RADARS_V004 if config.radar_v004_mounts else RADARS_V0:
+        pose = world_pose(radar.sensor_id, radar.mount)
+        out[radar.sensor_id] = {
+            "location": pose.location.to_list(),
+            "rotation": pose.rotation.to_anno(),
+            "world2radar": _r(pose.inverse_matrix()),
+            "radar2ego": _r(mount_transform(radar.mount).matrix()),
+        }
+    pose = world_pose(LIDAR.sensor_id, LIDAR.mount)
+    out[LIDAR.sensor_id] = {
+        "location": pose.location.to_list(),
+        "rotation": pose.rotation.to_anno(),
+        "world2lidar": _r(pose.inverse_matrix()),
+        "lidar2ego": _r(mount_transform(LIDAR.mount).matrix()),
+    }
+    return out
+
+
+@dataclass(frozen=True)
+class PlannerFields:
+    """Route-derived fields of the top level (see route_planners.py)."""
+
+    x_command_far: float
+    y_command_far: float
+    command_far: int
+    x_command_near: float
+    y_command_near: float
+    command_near: int
+    x_target: float
+    y_target: float
+    next_command: int
+
+
+def build_annotation(world_map: Map, snapshot: Snapshot, ego: ActorState, sensors: SensorData,
+                     config: RigConfig, plan: PlannerFields, gnss_xy: tuple[float, float], should_brake: bool,
+                     only_ap_brake: bool, route_ahead: np.ndarray) -> dict:
+    """The complete annotation dict of one frame, keys in Bench2Drive's order."""
+    control = ego.control if isinstance(ego.control, VehicleControl) else VehicleControl()
+    imu = sensors.imu
+    points = sensors.lidar if config.lidar else None
+    return {
+        "x": float(gnss_xy[0]),
+        "y": float(gnss_xy[1]),
+        "throttle": float(control.throttle),
+        "steer": float(control.steer),
+        "brake": float(control.brake),
+        "reverse": bool(control.reverse),
+        "theta": float(imu.compass),
+        "speed": float(sensors.speed),
+        "x_command_far": plan.x_command_far,
+        "y_command_far": plan.y_command_far,
+        "command_far": plan.command_far,
+        "x_command_near": plan.x_command_near,
+        "y_command_near": plan.y_command_near,
+        "command_near": plan.command_near,
+        "should_brake": bool(should_brake),
+        "x_target": plan.x_target,
+        "y_target": plan.y_target,
+        "next_command": plan.next_command,
+        "weather": snapshot.weather.to_anno(),
+        "acceleration": [float(v) for v in imu.accelerometer],
+        "angular_velocity": [float(v) for v in imu.gyroscope],
+        "bounding_boxes": bounding_boxes(world_map, snapshot, ego, points, route_ahead),
+        "sensors": sensor_calibrations(ego, config, sensors.sensor_transforms),
+        "only_ap_brake": bool(only_ap_brake),
+    }

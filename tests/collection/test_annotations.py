@@ -1,0 +1,107 @@
+"""Annotation building on a synthetic snapshot of a real town: key orders and computed fields by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from b2d_data.collection.annotations import PlannerFields, build_annotation, count_points_in_box
+from b2d_data.format.anno_schema import check_anno
+from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
+from b2d_data.format.weather import PRESETS
+from b2d_data.maps import load_opendrive
+from b2d_data.sim.api import (
+    ActorKind,
+    ActorState,
+    GnssReading,
+    ImuReading,
+    RigConfig,
+    SensorData,
+    Snapshot,
+    VehicleControl,
+)
+
+
+@pytest.fixture(scope="module")
+def town01(carla_maps_dir):
+    return load_opendrive(carla_maps_dir / "Town01.xodr")
+
+
+def _actor(actor_id, type_id, kind, transform, extent, tags, speed=0.0, **kw):
+    fwd = transform.get_forward_vector()
+    return ActorState(
+        id=actor_id, type_id=type_id, kind=kind, transform=transform,
+        velocity=Location(fwd.x * speed, fwd.y * speed, 0.0), angular_velocity=Location(), acceleration=Location(),
+        bounding_box=BoundingBox(Location(0.0, 0.0, extent[2]), Location(*extent)), semantic_tags=tags, **kw,
+    )  # fmt: skip
+
+
+def test_count_points_uses_the_actor_origin_box():
+    ego = _actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, Transform(), (2.4, 1.0, 0.75), (14,))
+    # Other car 10 m ahead, turned 90°: its length (2 m half) runs along the ego's y axis.
+    other = _actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, Transform(Location(10, 0, 0), Rotation(yaw=90)),
+                   (2.0, 1.0, 0.8), (14,))
+    pts = np.array([
+        [10.0, 1.9, 0.5],   # inside: 1.9 < 2.0 along its length
+        [10.0, 2.1, 0.5],   # outside its length
+        [10.9, 0.0, 0.5],   # inside: 0.9 < 1.0 across its width
+        [11.1, 0.0, 0.5],   # outside its width
+        [10.0, 0.0, 1.0],   # outside: z 1.0 above the *origin* exceeds the 0.8 half height (released rule)
+    ])  # fmt: skip
+    assert count_points_in_box(pts, ego, other) == 2
+    assert count_points_in_box(None, ego, other) == -1
+
+
+def test_annotation_follows_the_schema_and_values(town01):
+    wp = town01.generate_waypoints(20.0)[5]
+    ego_tf = Transform(wp.transform.location, wp.transform.rotation)
+    ego = _actor(7, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.451, 1.064, 0.755), (14,), speed=5.0,
+                 role_name="hero", base_type="car", control=VehicleControl(throttle=0.3, steer=-0.1),
+                 attributes={"color": "10,20,30"})
+    fwd = ego_tf.get_forward_vector()
+    ahead = Transform(Location(ego_tf.location.x + 20 * fwd.x, ego_tf.location.y + 20 * fwd.y, ego_tf.location.z),
+                      ego_tf.rotation)
+    car = _actor(8, "vehicle.audi.a2", ActorKind.VEHICLE, ahead, (1.85, 0.9, 0.77), (14,), speed=3.0,
+                 base_type="car", control=VehicleControl(brake=1.0))
+    walker = _actor(9, "walker.pedestrian.0001", ActorKind.WALKER,
+                    Transform(Location(ego_tf.location.x + 5 * fwd.x, ego_tf.location.y + 5 * fwd.y, 0.0)),
+                    (0.25, 0.25, 0.9), (12,), speed=1.2, attributes={"gender": "female", "age": "adult"})
+    far_away = _actor(10, "vehicle.audi.a2", ActorKind.VEHICLE,
+                      Transform(Location(ego_tf.location.x + 500, ego_tf.location.y, 0.0)), (1.85, 0.9, 0.77), (14,))
+    snapshot = Snapshot(frame=3, timestamp=0.15, actors={a.id: a for a in (ego, car, walker, far_away)},
+                        traffic_lights={}, traffic_signs={}, collisions=(), weather=PRESETS[3])
+    lidar = ego_tf.inverse_transform_points(np.array([[ahead.location.x, ahead.location.y, ahead.location.z + 0.5]]))
+    geo = town01.transform_to_geolocation(ego_tf.location)
+    sensors = SensorData(
+        frame=3, cameras={}, lidar=lidar, lidar_tags=np.array([14]), lidar_actor_ids=np.array([8]), radar={},
+        imu=ImuReading((0.1, 0.2, 9.8), (0.0, 0.0, 0.01), 1.25), gnss=GnssReading(geo.latitude, geo.longitude, 0.0),
+        speed=5.0,
+    )  # fmt: skip
+    plan = PlannerFields(1.0, 2.0, 4, 3.0, 4.0, 1, 5.0, 6.0, 3)
+    route_ahead = np.array([[ego_tf.location.x + k * fwd.x, ego_tf.location.y + k * fwd.y] for k in range(50)])
+    anno = build_annotation(town01, snapshot, ego, sensors, RigConfig(width=160, height=90), plan,
+                            (ego_tf.location.x, ego_tf.location.y), True, False, route_ahead)
+    assert check_anno(anno) == []
+    boxes = anno["bounding_boxes"]
+    assert [b["class"] for b in boxes] == ["ego_vehicle", "vehicle", "walker"]  # the 500 m car is not captured
+    assert boxes[0]["semantic_tags"] == [[14]] and boxes[0]["color"] == "10,20,30"
+    assert boxes[0]["road_id"] == wp.road_id and boxes[0]["lane_id"] == wp.lane_id
+    np.testing.assert_allclose(np.array(boxes[0]["world2ego"]) @ ego_tf.matrix(), np.eye(4), atol=1e-9)
+    assert boxes[1]["num_points"] == 1 and boxes[1]["brake"] == 1.0
+    assert boxes[1]["distance"] == pytest.approx(20.0, abs=1e-6)
+    assert boxes[2]["speed"] == pytest.approx(1.2) and boxes[2]["gender"] == "female"
+    assert len(boxes[2]["bone"]) == 6
+    # The world corners of the car: its centre is 0.77 m above its origin, so the top corners are at +1.54 m.
+    corners = np.array(boxes[1]["world_cord"])
+    assert corners[:, 2].max() == pytest.approx(ahead.location.z + 1.54)
+    assert anno["theta"] == 1.25 and anno["command_near"] == 1 and anno["should_brake"] is True
+    cam = anno["sensors"]["CAM_FRONT"]
+    # 160 px wide, FOV 70°: f = 80 / tan(35°) = 114.25 px.
+    assert cam["intrinsic"][0][0] == pytest.approx(80 / math.tan(math.radians(35)))
+    np.testing.assert_allclose(np.array(cam["cam2ego"])[:3, 3], [0.8, 0.0, 1.6])
+    assert list(anno["sensors"]) == [
+        "CAM_FRONT", "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT", "TOP_DOWN",
+        "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT", "RADAR_BACK_RIGHT", "LIDAR_TOP",
+    ]  # fmt: skip

@@ -13,6 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from b2d_data.format.anno_schema import (
+    DYNAMIC_VEHICLE_KEYS,
+    EGO_KEYS,
+    PROP_SIGN_KEYS,
+    STATIC_VEHICLE_KEYS,
+    WALKER_KEYS,
+)
 from b2d_data.format.rig import ALL_CAMERAS, LIDAR, RADARS_V0, RADARS_V004, CameraSpec, Mount
 from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
 from b2d_data.maps import Map
@@ -82,70 +89,28 @@ def count_points_in_box(points_ego: np.ndarray | None, ego: ActorState, actor: A
     return int(np.count_nonzero(inside))
 
 
-def _box_geometry(actor: ActorState) -> dict:
-    """location, rotation, bbx_loc, center, extent, world_cord of an actor's box."""
+def _brake(actor: ActorState) -> float:
+    control = actor.control
+    return float(control.brake) if isinstance(control, VehicleControl) else 0.0
+
+
+def _actor_values(world_map: Map, ego: ActorState, actor: ActorState) -> dict:
+    """Every field an actor-based box entry may hold; each class picks its keys in its own order."""
     bbox = actor.bounding_box
+    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
+    world2actor = _r(actor.transform.inverse_matrix())
     return {
+        "id": str(actor.id),
+        "type_id": actor.type_id,
+        "base_type": actor.base_type,
         "location": actor.location.to_list(),
         "rotation": actor.transform.rotation.to_anno(),
         "bbx_loc": bbox.location.to_list(),
         "center": actor.transform.transform_point(bbox.location).to_list(),
         "extent": bbox.extent.to_list(),
         "world_cord": _r(bbox.world_corners(actor.transform)),
-    }
-
-
-def _brake(actor: ActorState) -> float:
-    control = actor.control
-    return float(control.brake) if isinstance(control, VehicleControl) else 0.0
-
-
-def ego_box(world_map: Map, ego: ActorState) -> dict:
-    """The ``ego_vehicle`` entry (always first)."""
-    geo = _box_geometry(ego)
-    road_id, lane_id, section_id = _waypoint_ids(world_map, ego.location)
-    return {
-        "class": "ego_vehicle",
-        "id": str(ego.id),
-        "type_id": ego.type_id,
-        "base_type": ego.base_type,
-        "location": geo["location"],
-        "rotation": geo["rotation"],
-        "bbx_loc": geo["bbx_loc"],
-        "center": geo["center"],
-        "extent": geo["extent"],
-        "world_cord": geo["world_cord"],
-        # Bench2Drive wraps the ego's tag list in one more list.
-        "semantic_tags": [list(ego.semantic_tags)],
-        "color": _color(ego),
-        "speed": float(ego.forward_speed()),
-        "brake": _brake(ego),
-        "road_id": road_id,
-        "lane_id": lane_id,
-        "section_id": section_id,
-        "world2ego": _r(ego.transform.inverse_matrix()),
-    }
-
-
-def vehicle_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
-    """A ``vehicle`` entry with state ``dynamic``."""
-    geo = _box_geometry(actor)
-    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
-    return {
-        "class": "vehicle",
-        "state": "dynamic",
-        "id": str(actor.id),
-        "location": geo["location"],
-        "rotation": geo["rotation"],
-        "bbx_loc": geo["bbx_loc"],
-        "center": geo["center"],
-        "extent": geo["extent"],
-        "world_cord": geo["world_cord"],
         "semantic_tags": list(actor.semantic_tags),
-        "type_id": actor.type_id,
         "color": _color(actor),
-        "base_type": actor.base_type,
-        "num_points": count_points_in_box(points_ego, ego, actor),
         "distance": _distance(actor.location, ego.location),
         "speed": float(actor.forward_speed()),
         "brake": _brake(actor),
@@ -153,36 +118,41 @@ def vehicle_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: 
         "road_id": road_id,
         "lane_id": lane_id,
         "section_id": section_id,
-        "world2vehicle": _r(actor.transform.inverse_matrix()),
+        "world2ego": world2actor,
+        "world2vehicle": world2actor,
+        "world2ped": world2actor,
+        "world2sign": world2actor,
     }
+
+
+def _ordered(keys: Sequence[str], values: Mapping) -> dict:
+    """Project ``values`` onto a schema key order (format/anno_schema.py)."""
+    return {key: values[key] for key in keys}
+
+
+def ego_box(world_map: Map, ego: ActorState) -> dict:
+    """The ``ego_vehicle`` entry (always first)."""
+    values = _actor_values(world_map, ego, ego)
+    # Bench2Drive wraps the ego's tag list in one more list.
+    values.update({"class": "ego_vehicle", "semantic_tags": [list(ego.semantic_tags)]})
+    return _ordered(EGO_KEYS, values)
+
+
+def vehicle_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
+    """A ``vehicle`` entry with state ``dynamic``."""
+    values = _actor_values(world_map, ego, actor)
+    values.update({"class": "vehicle", "state": "dynamic", "num_points": count_points_in_box(points_ego, ego, actor)})
+    return _ordered(DYNAMIC_VEHICLE_KEYS, values)
 
 
 def static_vehicle_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
     """A ``vehicle`` entry with state ``static`` (parked-car props)."""
-    geo = _box_geometry(actor)
-    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
-    return {
-        "class": "vehicle",
-        "state": "static",
-        "id": str(actor.id),
-        "location": geo["location"],
-        "rotation": geo["rotation"],
-        "bbx_loc": geo["bbx_loc"],
-        "center": geo["center"],
-        "extent": geo["extent"],
-        "world_cord": geo["world_cord"],
-        "semantic_tags": list(actor.semantic_tags),
-        "type_id": actor.type_id,
-        "num_points": count_points_in_box(points_ego, ego, actor),
-        "distance": _distance(actor.location, ego.location),
-        "speed": float(actor.forward_speed()),
-        "brake": 1.0,
-        "light_state": "NONE",
-        "road_id": road_id,
-        "lane_id": lane_id,
-        "section_id": section_id,
-        "world2vehicle": _r(actor.transform.inverse_matrix()),
-    }
+    values = _actor_values(world_map, ego, actor)
+    values.update({
+        "class": "vehicle", "state": "static", "num_points": count_points_in_box(points_ego, ego, actor),
+        "brake": 1.0, "light_state": "NONE",
+    })  # fmt: skip
+    return _ordered(STATIC_VEHICLE_KEYS, values)
 
 
 def _bone_segments(actor: ActorState) -> list:
@@ -203,30 +173,13 @@ def _bone_segments(actor: ActorState) -> list:
 
 def walker_box(world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None) -> dict:
     """A ``walker`` entry."""
-    geo = _box_geometry(actor)
-    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
-    return {
-        "class": "walker",
-        "id": str(actor.id),
-        "location": geo["location"],
-        "rotation": geo["rotation"],
-        "bbx_loc": geo["bbx_loc"],
-        "center": geo["center"],
-        "extent": geo["extent"],
-        "world_cord": geo["world_cord"],
-        "semantic_tags": list(actor.semantic_tags),
-        "type_id": actor.type_id,
-        "gender": actor.attributes.get("gender", "male"),
-        "age": actor.attributes.get("age", "adult"),
-        "num_points": count_points_in_box(points_ego, ego, actor),
-        "distance": _distance(actor.location, ego.location),
-        "speed": float(actor.forward_speed()),
+    values = _actor_values(world_map, ego, actor)
+    values.update({
+        "class": "walker", "gender": actor.attributes.get("gender", "male"),
+        "age": actor.attributes.get("age", "adult"), "num_points": count_points_in_box(points_ego, ego, actor),
         "bone": _bone_segments(actor),
-        "road_id": road_id,
-        "lane_id": lane_id,
-        "section_id": section_id,
-        "world2ped": _r(actor.transform.inverse_matrix()),
-    }
+    })  # fmt: skip
+    return _ordered(WALKER_KEYS, values)
 
 
 def _trigger_fields(transform: Transform, trigger: BoundingBox, level: BoundingBox) -> dict:
@@ -291,26 +244,9 @@ def trigger_sign_box(world_map: Map, ego: ActorState, sign: TrafficSignInfo, act
 
 def prop_sign_box(world_map: Map, ego: ActorState, actor: ActorState, affects_ego: bool) -> dict:
     """A ``traffic_sign`` entry without trigger volume (warning boards, cones, dirt debris)."""
-    geo = _box_geometry(actor)
-    road_id, lane_id, section_id = _waypoint_ids(world_map, actor.location)
-    return {
-        "class": "traffic_sign",
-        "id": str(actor.id),
-        "location": geo["location"],
-        "rotation": geo["rotation"],
-        "bbx_loc": geo["bbx_loc"],
-        "center": geo["center"],
-        "extent": geo["extent"],
-        "world_cord": geo["world_cord"],
-        "semantic_tags": list(actor.semantic_tags),
-        "type_id": actor.type_id,
-        "distance": _distance(actor.location, ego.location),
-        "affects_ego": bool(affects_ego),
-        "road_id": road_id,
-        "lane_id": lane_id,
-        "section_id": section_id,
-        "world2sign": _r(actor.transform.inverse_matrix()),
-    }
+    values = _actor_values(world_map, ego, actor)
+    values.update({"class": "traffic_sign", "affects_ego": bool(affects_ego)})
+    return _ordered(PROP_SIGN_KEYS, values)
 
 
 def is_static_vehicle(actor: ActorState) -> bool:

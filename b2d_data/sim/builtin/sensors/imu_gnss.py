@@ -1,0 +1,117 @@
+"""IMU, GNSS and speedometer of the rig (format.md §2.6), with the Bench2Drive noise from a seeded generator.
+
+CARLA conventions reproduced here:
+
+- accelerometer: the sensor's acceleration plus gravity (+9.81 m/s² on world z), expressed in the sensor axes,
+  so a car at rest reads (0, 0, 9.81);
+- gyroscope: angular velocity in rad/s in the sensor axes;
+- compass: angle from north = −y to the sensor's forward vector (horizontal), in [0, 2π); it equals
+  yaw (rad) + π/2 mod 2π;
+- GNSS: the sensor location through the town's geo-reference (spherical Mercator, y flipped), plus noise.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from b2d_data.format.rig import NOISE, NoiseSpec
+from b2d_data.format.transform import Location, Transform
+from b2d_data.sim.api import ActorState, GnssReading, ImuReading
+
+#: CARLA's gravity constant in the IMU.
+GRAVITY = 9.81
+#: CARLA's equatorial earth radius for the geolocation projection.
+EARTH_RADIUS_EQUA = 6378137.0
+
+
+def compass_of(forward_x: float, forward_y: float) -> float:
+    """CARLA's compass: angle between north (0, −1) and the horizontal forward direction, in [0, 2π).
+
+    CARLA only guards ``dot ≥ 1``; here the dot product is clamped to [−1, 1] as well, so a heading of due south
+    gives π instead of CARLA's occasional NaN.
+    """
+    norm = math.hypot(forward_x, forward_y)
+    if norm == 0.0:
+        return 0.0
+    fx, fy = forward_x / norm, forward_y / norm
+    dot = -fy
+    if dot >= 1.0:
+        return 0.0
+    angle = math.acos(max(-1.0, dot))
+    # z of cross(north, forward) = north_x·f_y − north_y·f_x = f_x.
+    return 2.0 * math.pi - angle if fx < 0.0 else angle
+
+
+def carla_geolocation(
+    location: Location, lat0: float = 0.0, lon0: float = 0.0, alt0: float = 0.0
+) -> tuple[float, float, float]:
+    """CARLA's ``GeoLocation.Transform``: (lat, lon, alt) of a world location for a geo-reference origin."""
+    scale = math.cos(math.radians(lat0))
+    mx = scale * math.radians(lon0) * EARTH_RADIUS_EQUA + location.x
+    my = scale * EARTH_RADIUS_EQUA * math.log(math.tan((90.0 + lat0) * math.pi / 360.0)) - location.y
+    lon = mx * 180.0 / (math.pi * EARTH_RADIUS_EQUA * scale)
+    lat = 360.0 * math.atan(math.exp(my / (EARTH_RADIUS_EQUA * scale))) / math.pi - 90.0
+    return lat, lon, alt0 + location.z
+
+
+def _as_lat_lon_alt(geo: object) -> tuple[float, float, float]:
+    """Accept a GeoLocation-like object (latitude/longitude/altitude) or a 3-sequence."""
+    if hasattr(geo, "latitude"):
+        return float(geo.latitude), float(geo.longitude), float(getattr(geo, "altitude", 0.0))
+    lat, lon, alt = geo  # type: ignore[misc]
+    return float(lat), float(lon), float(alt)
+
+
+def geolocator_of(town_map: object | None) -> Callable[[Location], tuple[float, float, float]]:
+    """The map's ``transform_to_geolocation`` when it has one, else CARLA's projection with a (0, 0, 0) origin."""
+    fn = getattr(town_map, "transform_to_geolocation", None) if town_map is not None else None
+    if fn is None:
+        return carla_geolocation
+    return lambda loc: _as_lat_lon_alt(fn(loc))
+
+
+@dataclass
+class ImuGnss:
+    """Reads IMU, GNSS and speedometer from the ego state; noise is seeded by ``seed`` and the frame number."""
+
+    noise: NoiseSpec = NOISE
+    seed: int = 0
+
+    def sensor_pose(self, ego: ActorState) -> np.ndarray:
+        """IMU / GNSS sensor → world 4×4 (both share the mount)."""
+        m = self.noise.imu_mount
+        mount = Transform(Location(m.x, m.y, m.z)).matrix()
+        return ego.transform.matrix() @ mount
+
+    def read(
+        self, ego: ActorState, frame: int, geolocate: Callable[[Location], tuple[float, float, float]]
+    ) -> tuple[ImuReading, GnssReading, float]:
+        """(IMU, GNSS, speed) at this tick."""
+        rng = np.random.default_rng([self.seed, frame, 77])
+        pose = self.sensor_pose(ego)
+        rot = pose[:3, :3]
+        omega = np.radians(ego.angular_velocity.to_array())
+        # Rigid-body lever arm of the mount: centripetal term of the yaw rate (roll/pitch rates are small).
+        lever = pose[:3, 3] - ego.transform.location.to_array()
+        yaw_rate = omega[2]
+        centripetal = np.array([-lever[0], -lever[1], 0.0]) * yaw_rate * yaw_rate
+        accel_world = ego.acceleration.to_array() + centripetal + np.array([0.0, 0.0, GRAVITY])
+        accel = rot.T @ accel_world + rng.normal(0.0, self.noise.accel_noise)
+        gyro = rot.T @ omega + rng.normal(0.0, self.noise.gyro_noise)
+        compass = compass_of(rot[0, 0], rot[1, 0])
+        imu = ImuReading(
+            accelerometer=(float(accel[0]), float(accel[1]), float(accel[2])),
+            gyroscope=(float(gyro[0]), float(gyro[1]), float(gyro[2])),
+            compass=compass,
+        )
+        lat, lon, alt = geolocate(Location.from_array(pose[:3, 3]))
+        gnss = GnssReading(
+            latitude=lat + float(rng.normal(0.0, self.noise.gnss_noise_deg)),
+            longitude=lon + float(rng.normal(0.0, self.noise.gnss_noise_deg)),
+            altitude=alt + float(rng.normal(0.0, self.noise.gnss_noise_alt)),
+        )
+        return imu, gnss, float(ego.forward_speed())

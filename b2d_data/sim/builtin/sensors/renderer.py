@@ -1,0 +1,528 @@
+"""Camera renderer: one moderngl EGL context, one multi-render-target pass per camera.
+
+Each camera is drawn once into an RGBA8 colour target, an R32F planar-depth target, an R8UI semantic-tag target
+and an R16UI instance-id target, each read back straight into the array a :class:`CameraFrame` holds. The
+projection is built from the camera's K exactly as ``CameraSpec.intrinsic`` gives it (principal point at the image
+centre), with image row 0 at the top, so a world point projected with K and the world→camera matrix lands on the
+pixel where it is drawn and every read-back is already in image order.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TypeVar
+
+import cv2
+import moderngl
+import numpy as np
+
+from b2d_data.format.record import CameraFrame
+from b2d_data.sim.builtin.sensors import shaders
+from b2d_data.sim.builtin.sensors.lighting import Lighting
+from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, grid_triangles
+
+log = logging.getLogger(__name__)
+
+#: Interleaved vertex layout: position, normal, RGB + material byte, (tag, instance id).
+VERTEX_DTYPE = np.dtype([("pos", "<f4", 3), ("nrm", "<f4", 3), ("col", "u1", 4), ("ids", "<u2", 2)])
+# (attribute, format when the program uses it, padding when it does not)
+_VERTEX_ATTRS = (
+    ("in_pos", "3f", "12x"), ("in_normal", "3f", "12x"), ("in_color", "4f1", "4x"), ("in_ids", "2u2", "4x"),
+)  # fmt: skip
+
+
+def _vertex_layout(program: moderngl.Program) -> tuple[str, ...]:
+    """Buffer format and attribute names for ``program``; attributes it does not use become padding."""
+    fmt, names = [], []
+    for name, used, skipped in _VERTEX_ATTRS:
+        if name in program:
+            fmt.append(used)
+            names.append(name)
+        else:
+            fmt.append(skipped)
+    return (" ".join(fmt), *names)
+
+#: UE sensor axes (x fwd, y right, z up) → OpenCV camera axes (x right, y down, z fwd).
+UE_TO_CV = np.array([[0, 1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
+
+_SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software")
+
+
+def create_gl_context() -> moderngl.Context:
+    """An EGL context on a hardware GPU when one is present, else on Mesa's software rasteriser.
+
+    ``B2D_EGL_DEVICE=<index>`` forces one EGL device.
+    """
+    forced = os.environ.get("B2D_EGL_DEVICE")
+    if forced is not None:
+        return moderngl.create_standalone_context(backend="egl", device_index=int(forced))
+    fallback: moderngl.Context | None = None
+    for index in range(16):
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl", device_index=index)
+        except Exception as exc:  # glcontext raises plain Exception subclasses per failure kind
+            if "found" in str(exc):  # "requested device index i, but found n devices"
+                break
+            log.debug("EGL device %d unusable: %s", index, exc)
+            continue
+        renderer = ctx.info.get("GL_RENDERER", "").lower()
+        if not any(name in renderer for name in _SOFTWARE_RENDERERS):
+            if fallback is not None:
+                fallback.release()
+            log.info("rendering on EGL device %d: %s", index, ctx.info.get("GL_RENDERER"))
+            return ctx
+        if fallback is None:
+            fallback = ctx
+        else:
+            ctx.release()
+    if fallback is None:
+        return moderngl.create_standalone_context(backend="egl")
+    log.info("rendering on software EGL: %s", fallback.info.get("GL_RENDERER"))
+    return fallback
+
+
+def intrinsic_matrix(fov: float, width: int, height: int) -> np.ndarray:
+    """K of a CARLA pinhole camera (horizontal FOV in degrees, square pixels, centred principal point)."""
+    f = width / (2.0 * math.tan(math.radians(fov) / 2.0))
+    return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
+
+
+def projection_from_intrinsic(k: np.ndarray, width: int, height: int, near: float, far: float) -> np.ndarray:
+    """GL clip matrix for OpenCV camera coordinates; NDC y = 2·v/H − 1 so GL row 0 is image row 0."""
+    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
+    return np.array(
+        [
+            [2.0 * fx / width, 0.0, 2.0 * cx / width - 1.0, 0.0],
+            [0.0, 2.0 * fy / height, 2.0 * cy / height - 1.0, 0.0],
+            [0.0, 0.0, (far + near) / (far - near), -2.0 * far * near / (far - near)],
+            [0.0, 0.0, 1.0, 0.0],
+        ]
+    )
+
+
+def _set(program: moderngl.Program, name: str, value: object) -> None:
+    """Set a uniform if the program uses it (GLSL compilers drop unused ones); matrices go column-major."""
+    if name not in program:
+        return
+    if isinstance(value, np.ndarray):
+        program[name].write(np.ascontiguousarray(value.T, dtype="f4").tobytes())
+    else:
+        program[name].value = value
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """One camera to render: its world pose (4×4 sensor→world, CARLA axes), FOV, size and whether labels are read."""
+
+    sensor_to_world: np.ndarray
+    fov: float
+    width: int
+    height: int
+    labels: bool = True
+
+    def intrinsic(self) -> np.ndarray:
+        """The camera's K."""
+        return intrinsic_matrix(self.fov, self.width, self.height)
+
+    def world_to_cv(self) -> np.ndarray:
+        """World → OpenCV camera 4×4."""
+        return UE_TO_CV @ np.linalg.inv(self.sensor_to_world)
+
+
+#: Per-vertex brightness variation by material (relative amplitude), so that large surfaces are not flat colour.
+_VARIATION = {int(Material.ROAD): 0.12, int(Material.FOLIAGE): 0.4, int(Material.MATTE): 0.06}
+
+
+def _hash01(cells: np.ndarray) -> np.ndarray:
+    """A deterministic pseudo-random value in [0, 1) per integer 2-D cell."""
+    h = (cells[:, 0].astype(np.uint64) * np.uint64(73856093)) ^ (cells[:, 1].astype(np.uint64) * np.uint64(19349663))
+    h ^= h >> np.uint64(13)
+    h *= np.uint64(0x5BD1E995)
+    h ^= h >> np.uint64(15)
+    return (h & np.uint64(0xFFFF)).astype(np.float64) / 65536.0
+
+
+def pack_vertices(mesh: TriangleMesh) -> np.ndarray:
+    """The mesh as an interleaved vertex array (3 vertices per triangle)."""
+    t = len(mesh)
+    out = np.empty(3 * t, dtype=VERTEX_DTYPE)
+    if t == 0:
+        return out
+    pos = mesh.vertices.reshape(-1, 3)
+    out["pos"] = pos
+    out["nrm"] = mesh.normals.reshape(-1, 3)
+    col = np.empty((t, 4), np.uint8)
+    col[:, :3] = mesh.colors
+    col[:, 3] = mesh.materials
+    vcol = np.repeat(col, 3, axis=0)
+    amp = np.zeros(len(vcol))
+    for material, a in _VARIATION.items():
+        amp[vcol[:, 3] == material] = a
+    varied = amp > 0
+    if varied.any():
+        # Hashed on the vertex position, so vertices shared by neighbouring triangles vary alike (smooth shading).
+        p = pos[varied].astype(np.float64)
+        fine = _hash01(np.floor(p[:, :2] * 0.5).astype(np.int64))
+        coarse = _hash01(np.floor(p[:, :2] / 16.0).astype(np.int64) + 7919)
+        factor = 1.0 + amp[varied] * (0.6 * fine + 0.4 * coarse - 0.5) * 2.0
+        vcol[varied, :3] = np.clip(vcol[varied, :3] * factor[:, None], 0, 255).astype(np.uint8)
+    out["col"] = vcol
+    ids = np.empty((t, 2), np.uint16)
+    ids[:, 0] = mesh.tags
+    ids[:, 1] = (mesh.instance_ids & 0xFFFF).astype(np.uint16)
+    out["ids"] = np.repeat(ids, 3, axis=0)
+    return out
+
+
+#: Materials in drawing order: small near things first, the terrain last, so early depth tests skip hidden work.
+DRAW_ORDER: tuple[int, ...] = (
+    Material.EMISSIVE, Material.PAINT, Material.GLASS, Material.ROAD, Material.MATTE, Material.FACADE,
+    Material.FOLIAGE,
+)
+
+
+@dataclass
+class _Tiles:
+    """Triangles of one material sorted by ground tile: vertex ranges and boxes for frustum culling."""
+
+    first: np.ndarray  # (n,) first vertex
+    count: np.ndarray  # (n,) vertex count
+    corners: np.ndarray  # (n, 8, 4) homogeneous AABB corners
+
+
+def _batch_mesh(mesh: TriangleMesh, tile: float | None) -> tuple[TriangleMesh, dict[int, _Tiles]]:
+    """Sort triangles by material, then (when ``tile`` is given) by the ground tile of their centroid.
+
+    Each (material, tile) batch becomes one contiguous vertex range with its bounding box.
+    """
+    if len(mesh) == 0:
+        return mesh, {}
+    mat = mesh.materials.astype(np.int64)
+    if tile is None:
+        tkey = np.zeros(len(mesh), np.int64)
+    else:
+        centroid = mesh.vertices.mean(axis=1)
+        ix = np.floor(centroid[:, 0] / tile).astype(np.int64)
+        iy = np.floor(centroid[:, 1] / tile).astype(np.int64)
+        tkey = (ix - ix.min()) * (iy.max() - iy.min() + 1) + (iy - iy.min())
+    key = mat * (int(tkey.max()) + 1) + tkey
+    order = np.argsort(key, kind="stable")
+    mesh = mesh.subset(order)
+    key, mat = key[order], mat[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    ends = np.r_[starts[1:], len(key)]
+    lo = np.minimum.reduceat(mesh.vertices.min(axis=1), starts, axis=0)
+    hi = np.maximum.reduceat(mesh.vertices.max(axis=1), starts, axis=0)
+    signs = np.array([(sx, sy, sz) for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)], np.float64)
+    corners = lo[:, None, :] + signs[None] * (hi - lo)[:, None, :]
+    corners = np.concatenate([corners, np.ones(corners.shape[:2] + (1,))], axis=2)
+    batches: dict[int, _Tiles] = {}
+    for m in np.unique(mat[starts]).tolist():
+        sel = mat[starts] == m
+        batches[m] = _Tiles(starts[sel] * 3, (ends[sel] - starts[sel]) * 3, corners[sel])
+    return mesh, batches
+
+
+def _visible_runs(tiles: _Tiles, viewproj: np.ndarray, eye: np.ndarray) -> list[tuple[int, int]]:
+    """(first, count) vertex runs of the tiles not entirely outside one clip plane, nearest tile first.
+
+    Front-to-back order lets the early depth test skip the shading of hidden pixels.
+    """
+    if len(tiles.first) == 0:
+        return []
+    clip = tiles.corners @ viewproj.T  # (n, 8, 4)
+    x, y, z, w = clip[..., 0], clip[..., 1], clip[..., 2], clip[..., 3]
+    out = (
+        (x < -w).all(1) | (x > w).all(1) | (y < -w).all(1) | (y > w).all(1) | (z < -w).all(1) | (z > w).all(1)
+    )
+    visible = np.flatnonzero(~out)
+    centres = tiles.corners[visible, :, :3].mean(axis=1)
+    visible = visible[np.argsort(np.linalg.norm(centres - eye, axis=1), kind="stable")]
+    runs: list[tuple[int, int]] = []
+    for first, count in zip(tiles.first[visible].tolist(), tiles.count[visible].tolist()):
+        if runs and runs[-1][0] + runs[-1][1] == first:
+            runs[-1] = (runs[-1][0], runs[-1][1] + count)
+        else:
+            runs.append((first, count))
+    return runs
+
+
+def sky_grid(columns: int = 48, rows: int = 27) -> np.ndarray:
+    """Triangles (x, y pairs in NDC, float32) of a grid covering the screen, for the per-vertex sky."""
+    xs = np.linspace(-1.0, 1.0, columns + 1)
+    ys = np.linspace(-1.0, 1.0, rows + 1)
+    gx, gy = np.meshgrid(xs, ys)
+    return grid_triangles(np.stack([gx, gy], axis=-1)).astype("f4")
+
+
+def noise_texture(size: int = 256, seed: int = 7) -> np.ndarray:
+    """(size, size, 2) uint8 tileable smooth noise: R fine grain, G coarse blobs (FFT low-pass of white noise)."""
+    rng = np.random.default_rng(seed)
+    f = np.fft.fftfreq(size)
+    radius = np.hypot(f[:, None], f[None, :])
+    out = np.empty((size, size, 2), np.uint8)
+    for channel, cutoff in ((0, 0.12), (1, 0.03)):
+        spectrum = np.fft.fft2(rng.standard_normal((size, size))) * np.exp(-((radius / cutoff) ** 2))
+        field = np.real(np.fft.ifft2(spectrum))
+        field = (field - field.min()) / max(field.max() - field.min(), 1e-9)
+        out[..., channel] = np.clip(field * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    return out
+
+
+class _Targets:
+    """Colour (and, for labelled cameras, depth, tag and id) targets plus a depth buffer of one resolution."""
+
+    def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool) -> None:
+        self.color = ctx.texture((width, height), 4, dtype="f1")
+        self.rgba = np.empty((height, width, 4), np.uint8)  # read-back buffer of the colour target
+        # Unlabelled cameras (top-down) bind only the colour target: the other outputs are dropped unwritten.
+        self.depth = ctx.texture((width, height), 1, dtype="f4") if labels else None
+        self.tags = ctx.texture((width, height), 1, dtype="u1") if labels else None
+        self.ids = ctx.texture((width, height), 1, dtype="u2") if labels else None
+        self.zbuf = ctx.depth_renderbuffer((width, height))
+        attachments = [self.color, self.depth, self.tags, self.ids] if labels else [self.color]
+        self.fbo = ctx.framebuffer(attachments, self.zbuf)
+        self.all_color = self.fbo.color_mask
+        off = (False, False, False, False)
+        self.no_color = (off,) * len(attachments) if len(attachments) > 1 else off
+
+    def release(self) -> None:
+        for obj in (self.fbo, self.color, self.depth, self.tags, self.ids, self.zbuf):
+            if obj is not None:
+                obj.release()
+
+
+_F = TypeVar("_F", bound=Callable)
+
+
+def _current(method: _F) -> _F:
+    """Run a Renderer method with its GL context current (several renderers may live in one process)."""
+
+    @functools.wraps(method)
+    def wrapper(self: Renderer, *args, **kwargs):
+        with self.ctx:
+            return method(self, *args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
+
+
+class Renderer:
+    """Renders camera views of a static mesh (uploaded once) plus a per-frame dynamic mesh."""
+
+    def __init__(self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0) -> None:
+        self.ctx = create_gl_context()
+        self.near = near
+        self.far = far
+        self.tile_size = tile_size
+        self.gl_renderer = self.ctx.info.get("GL_RENDERER", "")
+        self._programs: dict[tuple, moderngl.Program] = {}
+        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
+        self._static_vbo: moderngl.Buffer | None = None
+        self._static_batches: dict[int, _Tiles] = {}
+        self._dyn_vbo = self.ctx.buffer(reserve=1 << 20, dynamic=True)
+        self._dyn_batches: dict[int, _Tiles] = {}
+        self._targets: dict[tuple[int, int, bool, int], _Targets] = {}
+        noise = noise_texture()
+        self._noise = self.ctx.texture((noise.shape[1], noise.shape[0]), 2, noise.tobytes(), dtype="f1")
+        self._noise.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self._lightmap = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint8).tobytes(), dtype="f1")
+        self._lightmap_rect = (0.0, 0.0, 1.0, 1.0)
+        self.static_triangles = 0
+
+    # ------------------------------------------------------------------------------------------ programs
+    def _program(self, key: tuple) -> moderngl.Program:
+        """A scene program ("scene", material, night, wet) or the sky program ("sky", clouds), compiled once."""
+        prog = self._programs.get(key)
+        if prog is None:
+            if key[0] == "sky":
+                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(key[1]), fragment_shader=shaders.SKY_FRAGMENT)
+            else:
+                _, material, night, wet = key
+                prog = self.ctx.program(
+                    vertex_shader=shaders.scene_vertex(material, night, wet),
+                    fragment_shader=shaders.scene_fragment(material, night, wet),
+                )
+            _set(prog, "u_noise", 1)
+            _set(prog, "u_lightmap", 0)
+            self._programs[key] = prog
+        return prog
+
+    def _vao(self, program_key: tuple, which: str) -> moderngl.VertexArray:
+        """The vertex array binding ``which`` buffer (static / dynamic / sky) to a program."""
+        key = (program_key, which)
+        vao = self._vaos.get(key)
+        if vao is None:
+            prog = self._program(program_key)
+            if which == "sky":
+                vao = self.ctx.vertex_array(prog, [(self._sky_vbo, "2f", "in_xy")])
+            else:
+                vbo = self._static_vbo if which == "static" else self._dyn_vbo
+                vao = self.ctx.vertex_array(prog, [(vbo, *_vertex_layout(prog))])
+            self._vaos[key] = vao
+        return vao
+
+    def _drop_vaos(self, which: str) -> None:
+        for key in [k for k in self._vaos if k[1] == which]:
+            self._vaos.pop(key).release()
+
+    # ------------------------------------------------------------------------------------------ scene
+    @_current
+    def set_static(self, mesh: TriangleMesh) -> None:
+        """Upload the static scene, batched by material and ground tile (for culling)."""
+        mesh, self._static_batches = _batch_mesh(mesh, self.tile_size)
+        data = pack_vertices(mesh)
+        self._drop_vaos("static")
+        if self._static_vbo is not None:
+            self._static_vbo.release()
+        self._static_vbo = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * VERTEX_DTYPE.itemsize)
+        self.static_triangles = len(mesh)
+
+    @_current
+    def set_lightmap(self, image: np.ndarray, origin: tuple[float, float], size: tuple[float, float]) -> None:
+        """Street-lamp light pools: (H, W) intensities in [0, 1] covering ``origin`` + ``size`` metres (x, y)."""
+        img = np.clip(np.asarray(image, np.float32) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        self._lightmap.release()
+        h, w = img.shape
+        self._lightmap = self.ctx.texture((w, h), 1, np.ascontiguousarray(img).tobytes(), dtype="f1")
+        self._lightmap.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self._lightmap.repeat_x = False
+        self._lightmap.repeat_y = False
+        self._lightmap_rect = (origin[0], origin[1], 1.0 / size[0], 1.0 / size[1])
+
+    @_current
+    def set_dynamic(self, mesh: TriangleMesh) -> None:
+        """Replace the per-frame mesh."""
+        mesh, self._dyn_batches = _batch_mesh(mesh, None)
+        data = pack_vertices(mesh)
+        if data.nbytes > self._dyn_vbo.size:
+            self._drop_vaos("dynamic")
+            self._dyn_vbo.release()
+            self._dyn_vbo = self.ctx.buffer(reserve=max(data.nbytes, 2 * self._dyn_vbo.size), dynamic=True)
+        if data.nbytes:
+            self._dyn_vbo.write(data.tobytes())
+
+    # ------------------------------------------------------------------------------------------ drawing
+    def _weather_uniforms(self, light: Lighting, head: tuple[np.ndarray, np.ndarray] | None) -> dict[str, object]:
+        return {
+            "u_sky_zenith": tuple(map(float, light.sky_zenith)),
+            "u_sky_horizon": tuple(map(float, light.sky_horizon)),
+            "u_sun_dir": tuple(map(float, light.sun_dir)),
+            "u_sun_color": tuple(map(float, light.sun_color)),
+            "u_cloudiness": float(light.cloudiness),
+            "u_fog_color": tuple(map(float, light.fog_color)),
+            "u_fog_density": float(light.fog_density),
+            "u_fog_start": float(light.fog_start),
+            "u_ambient_sky": tuple(map(float, light.ambient_sky)),
+            "u_ambient_ground": tuple(map(float, light.ambient_ground)),
+            "u_wetness": float(light.wetness),
+            "u_puddles": float(light.puddles),
+            "u_night": float(light.night),
+            "u_lightmap_rect": tuple(map(float, self._lightmap_rect)),
+            "u_head_pos": (0.0, 0.0, -1e4) if head is None else tuple(map(float, head[0])),
+            "u_head_dir": (0.0, 0.0, 1.0) if head is None else tuple(map(float, head[1])),
+            "u_sky_depth": shaders.SKY_DEPTH,
+            "u_sky_tag": shaders.SKY_TAG,
+        }
+
+    def _targets_for(self, width: int, height: int, labels: bool, slot: int) -> _Targets:
+        """The targets of the ``slot``-th view of a batch (created on first use, then reused every frame)."""
+        key = (width, height, labels, slot)
+        if key not in self._targets:
+            self._targets[key] = _Targets(self.ctx, width, height, labels)
+        return self._targets[key]
+
+    def _draw(self, view: CameraView, light: Lighting, uniforms: dict[str, object], slot: int = 0) -> _Targets:
+        k = view.intrinsic()
+        viewproj = projection_from_intrinsic(k, view.width, view.height, self.near, self.far) @ view.world_to_cv()
+        targets = self._targets_for(view.width, view.height, view.labels, slot)
+        targets.fbo.use()
+        targets.fbo.viewport = (0, 0, view.width, view.height)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        self.ctx.depth_func = "<"
+        # Only the depth buffer is cleared: the sky pass writes every pixel the scene left uncovered, and clearing
+        # the integer id target with glClear would be undefined behaviour.
+        targets.fbo.color_mask = targets.no_color
+        targets.fbo.clear(depth=1.0)
+        targets.fbo.color_mask = targets.all_color
+        targets.fbo.use()  # moderngl applies a framebuffer's colour mask when it is bound
+        pose = view.sensor_to_world
+        self._lightmap.use(0)
+        self._noise.use(1)
+        night, wet = light.night > 0.0, light.wetness > 0.0 or light.puddles > 0.0
+        per_camera = {
+            "u_viewproj": viewproj,
+            "u_cam_pos": tuple(map(float, pose[:3, 3])),
+            "u_cam_fwd": tuple(map(float, pose[:3, 0])),
+        }
+        for material in DRAW_ORDER:
+            dyn = self._dyn_batches.get(material)
+            static = self._static_batches.get(material)
+            runs = _visible_runs(static, viewproj, pose[:3, 3]) if static is not None else []
+            if dyn is None and not runs:
+                continue
+            key = ("scene", int(material), night, wet)
+            prog = self._program(key)
+            for name, value in {**uniforms, **per_camera}.items():
+                _set(prog, name, value)
+            if dyn is not None:
+                vao = self._vao(key, "dynamic")
+                vao.render(moderngl.TRIANGLES, vertices=int(dyn.count.sum()), first=int(dyn.first[0]))
+            if runs:
+                vao = self._vao(key, "static")
+                for first, count in runs:
+                    vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+        self.ctx.depth_func = "<="
+        sky_key = ("sky", light.cloudiness > 0.01)
+        sky = self._program(sky_key)
+        for name, value in uniforms.items():
+            _set(sky, name, value)
+        _set(sky, "u_cam_rot", pose[:3, :3] @ UE_TO_CV[:3, :3].T)  # OpenCV axes → world
+        _set(sky, "u_intrinsic", (float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])))
+        _set(sky, "u_viewport", (float(view.width), float(view.height)))
+        self._vao(sky_key, "sky").render(moderngl.TRIANGLES)
+        return targets
+
+    @_current
+    def render(
+        self,
+        views: Sequence[CameraView],
+        lighting: Lighting,
+        headlight: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> list[CameraFrame]:
+        """Draw each view and read back RGB (and depth / semantic / instance when ``labels``)."""
+        uniforms = self._weather_uniforms(lighting, headlight)
+        # Every view gets its own targets and all are drawn before any is read back: the rasteriser threads work
+        # on one camera while this thread prepares the next, and read-backs do not stall between draws.
+        drawn = [self._draw(view, lighting, uniforms, slot) for slot, view in enumerate(views)]
+        frames = []
+        for view, targets in zip(views, drawn):
+            h, w = view.height, view.width
+            # Reading RGBA and dropping alpha with OpenCV is about twice as fast as letting GL convert to RGB.
+            targets.fbo.read_into(targets.rgba, components=4, attachment=0)
+            rgb = cv2.cvtColor(targets.rgba, cv2.COLOR_RGBA2RGB)
+            if not view.labels:
+                frames.append(CameraFrame(rgb=rgb))
+                continue
+            depth = np.empty((h, w), np.float32)
+            targets.fbo.read_into(depth, components=1, attachment=1, dtype="f4")
+            semantic = np.empty((h, w), np.uint8)
+            targets.fbo.read_into(semantic, components=1, attachment=2, dtype="u1")
+            instance = np.empty((h, w), np.uint16)
+            targets.fbo.read_into(instance, components=1, attachment=3, dtype="u2")
+            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance))
+        return frames
+
+    def close(self) -> None:
+        """Release the GL context and everything in it."""
+        with self.ctx:
+            for t in self._targets.values():
+                t.release()
+            self._targets.clear()
+        self.ctx.release()

@@ -1,0 +1,243 @@
+"""GLSL sources of the camera renderer (kept as Python strings so they ship inside the package).
+
+The scene program draws into four colour attachments at once: 0 = RGBA8 colour, 1 = R32F planar depth (metres
+along the optical axis), 2 = R8UI semantic tag, 3 = R16UI instance id. It is compiled once per material and weather
+variant (``#define`` switches) because a software rasteriser runs every branch of a shader for every pixel:
+specialised programs keep each pixel's work to what its material needs. The sky program fills the pixels no
+geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and the sky tag.
+
+For the same reason lighting, fog and reflections are computed per vertex (meshes are tessellated finely enough
+for that: 2 m road strips, an 8 m terrain grid, a sky grid) and fragment shaders mostly copy an interpolated colour.
+"""
+
+from __future__ import annotations
+
+#: Depth written for sky pixels: CARLA's far plane (1000 m).
+SKY_DEPTH = 1000.0
+#: CARLA semantic tag of sky pixels.
+SKY_TAG = 11
+
+_SCENE_VERTEX = """
+uniform mat4 u_viewproj;
+uniform vec3 u_cam_pos;
+uniform vec3 u_cam_fwd;
+uniform vec3 u_sun_dir;
+uniform vec3 u_sun_color;
+uniform vec3 u_ambient_sky;
+uniform vec3 u_ambient_ground;
+uniform vec3 u_sky_zenith;
+uniform vec3 u_sky_horizon;
+uniform vec3 u_fog_color;
+uniform float u_fog_density;
+uniform float u_fog_start;
+uniform float u_wetness;
+uniform float u_night;
+#if NIGHT
+uniform sampler2D u_lightmap;
+uniform vec4 u_lightmap_rect;
+uniform vec3 u_head_pos;
+uniform vec3 u_head_dir;
+#endif
+in vec3 in_pos;
+in vec3 in_normal;
+in vec4 in_color;
+in uvec2 in_ids;
+out vec3 v_color;
+out float v_depth;
+flat out uvec2 v_ids;
+#if MAT == 2
+out vec3 v_alt;
+out vec2 v_facade;
+flat out float v_wall;
+#if NIGHT
+out vec3 v_alt_lit;
+#endif
+#elif MAT == 1 && WET
+out vec3 v_alt;
+out vec2 v_xy;
+#endif
+
+vec3 glossy(vec3 col, vec3 n, vec3 v, float gloss, float mirror) {
+    // Fresnel-weighted reflection of the sky (dimmed by ``mirror``: streets reflect buildings, not only sky)
+    // plus a sun highlight.
+    vec3 r = reflect(-v, n);
+    float fres = 0.04 + 0.96 * pow(1.0 - max(dot(n, v), 0.0), 5.0);
+    vec3 sky = mix(u_sky_horizon, u_sky_zenith, sqrt(clamp(r.z, 0.0, 1.0))) * mirror;
+    vec3 hv = normalize(u_sun_dir + v);
+    return mix(col, sky, fres * gloss) + u_sun_color * pow(max(dot(n, hv), 0.0), 60.0) * gloss * 1.5;
+}
+
+void main() {
+    vec3 p = in_pos;
+    vec3 to_cam = u_cam_pos - p;
+    float dist = length(to_cam);
+    vec3 v = to_cam / max(dist, 1e-4);
+    vec3 n = normalize(in_normal);
+    n = dot(n, v) < 0.0 ? -n : n;
+    vec3 albedo = in_color.rgb;
+    vec3 light = mix(u_ambient_ground, u_ambient_sky, n.z * 0.5 + 0.5) + u_sun_color * max(dot(n, u_sun_dir), 0.0);
+#if NIGHT
+    vec2 luv = (p.xy - u_lightmap_rect.xy) * u_lightmap_rect.zw;
+    float lamp = textureLod(u_lightmap, luv, 0.0).r * clamp(1.0 - (p.z - 0.5) / 6.0, 0.0, 1.0);
+    vec3 hl = p - u_head_pos;
+    float hd = length(hl);
+    vec3 hdir = hl / max(hd, 1e-3);
+    float cone = smoothstep(0.8, 0.95, dot(hdir, u_head_dir));
+    float facing = max(dot(n, -hdir), 0.0) * 0.8 + 0.2;
+    float reach = hd / 12.0;
+    vec3 lamps = vec3(1.0, 0.82, 0.58) * lamp * 0.35;
+    vec3 beam = vec3(1.0, 0.96, 0.85) * cone * facing * 0.75 / (1.0 + reach * reach);
+    light += (lamps + beam) * u_night;
+#endif
+    float fog = 1.0 - exp(-u_fog_density * max(dist - u_fog_start, 0.0));
+    vec3 col = albedo * light;
+#if MAT == 4
+    col += albedo * (0.25 + 1.6 * u_night);
+#elif MAT == 3
+    col = glossy(col, n, v, 0.7, 1.0);
+#elif MAT == 6
+    col = glossy(col, n, v, 0.12, 1.0);
+#elif MAT == 1 && WET
+    vec3 wet = glossy(albedo * 0.45 * light, n, v, 0.6, 0.45);
+    col = mix(col, wet, u_wetness);
+    v_alt = mix(wet, u_fog_color, fog);
+    v_xy = p.xy * 0.029;
+#elif MAT == 2
+    vec3 window = glossy(vec3(0.11, 0.14, 0.18) * light, n, v, 0.45, 1.0);
+    v_alt = mix(window, u_fog_color, fog);
+#if NIGHT
+    v_alt_lit = mix(window + vec3(1.0, 0.78, 0.45) * 0.32 * u_night, u_fog_color, fog);
+#endif
+    float side = abs(n.x) > abs(n.y) ? p.y : p.x;
+    v_facade = vec2(side / 3.1, p.z / 3.3);
+    v_wall = abs(n.z) < 0.5 ? 1.0 : 0.0;
+#endif
+    v_color = mix(col, u_fog_color, fog);
+    v_depth = dot(p - u_cam_pos, u_cam_fwd);
+    v_ids = in_ids;
+    gl_Position = u_viewproj * vec4(p, 1.0);
+}
+"""
+
+_SCENE_FRAGMENT = """
+uniform float u_puddles;
+uniform sampler2D u_noise;
+in vec3 v_color;
+in float v_depth;
+flat in uvec2 v_ids;
+#if MAT == 2
+in vec3 v_alt;
+in vec2 v_facade;
+flat in float v_wall;
+#if NIGHT
+in vec3 v_alt_lit;
+#endif
+#elif MAT == 1 && WET
+in vec3 v_alt;
+in vec2 v_xy;
+#endif
+layout(location = 0) out vec4 f_color;
+layout(location = 1) out float f_depth;
+layout(location = 2) out uint f_tag;
+layout(location = 3) out uint f_instance;
+
+void main() {
+    // Lighting, fog and reflections come per vertex; here only per-pixel patterns pick between two colours.
+    vec3 col = v_color;
+#if MAT == 2
+    vec2 f = fract(v_facade);
+    float win = v_wall * step(1.0, v_facade.y) * step(0.22, f.x) * step(f.x, 0.78) * step(0.3, f.y) * step(f.y, 0.82);
+#if NIGHT
+    vec2 cell = floor(v_facade);
+    float lit = step(0.72, fract(sin(dot(cell, vec2(12.9898, 78.233))) * 43758.5453));
+    col = mix(col, mix(v_alt, v_alt_lit, lit), win);
+#else
+    col = mix(col, v_alt, win);
+#endif
+#elif MAT == 1 && WET
+    float blob = texture(u_noise, v_xy).g;
+    col = mix(col, v_alt, smoothstep(0.66, 0.72, blob + 0.25 * u_puddles) * u_puddles);
+#endif
+    f_color = vec4(clamp(col, 0.0, 1.0), 1.0);
+    f_depth = v_depth;
+    f_tag = v_ids.x;
+    f_instance = v_ids.y;
+}
+"""
+
+
+def scene_vertex(material: int, night: bool, wet: bool) -> str:
+    """The scene vertex shader specialised for one material and weather variant."""
+    return _header(material, night, wet) + _SCENE_VERTEX
+
+
+def _header(material: int, night: bool, wet: bool) -> str:
+    return f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
+
+
+def scene_fragment(material: int, night: bool, wet: bool) -> str:
+    """The scene fragment shader specialised for one material and weather variant."""
+    return _header(material, night, wet) + _SCENE_FRAGMENT
+
+
+_SKY_VERTEX = """
+uniform mat3 u_cam_rot;   // OpenCV camera axes -> world
+uniform vec4 u_intrinsic; // fx, fy, cx, cy
+uniform vec2 u_viewport;  // width, height in pixels
+uniform vec3 u_sky_zenith;
+uniform vec3 u_sky_horizon;
+uniform vec3 u_sun_dir;
+uniform vec3 u_sun_color;
+uniform float u_cloudiness;
+uniform vec3 u_fog_color;
+uniform float u_fog_density;
+uniform sampler2D u_noise;
+in vec2 in_xy;
+out vec3 v_color;
+void main() {
+    // The sky is a screen-covering grid at the far plane: its colour is computed per grid vertex (the sky varies
+    // smoothly) and only pixels no geometry covered are filled, so the per-pixel cost is a colour copy.
+    vec2 pix = (in_xy * 0.5 + 0.5) * u_viewport;  // NDC y = 2·row/H − 1: pix.y is the image row
+    vec3 ray = vec3((pix.x - u_intrinsic.z) / u_intrinsic.x, (pix.y - u_intrinsic.w) / u_intrinsic.y, 1.0);
+    vec3 d = normalize(u_cam_rot * ray);
+    float e = d.z;
+    vec3 col = e >= 0.0 ? mix(u_sky_horizon, u_sky_zenith, sqrt(e)) : u_sky_horizon * (1.0 + 0.6 * e);
+    float sun = max(dot(d, u_sun_dir), 0.0);
+    col += u_sun_color * (pow(sun, 64.0) * 1.5 * (1.0 - u_cloudiness) + pow(sun, 8.0) * 0.25);
+#if CLOUDS
+    vec2 uv = d.xy / (max(e, 0.0) + 0.08) * 0.11;
+    float nz = textureLod(u_noise, uv, 0.0).g * 0.7 + textureLod(u_noise, uv * 3.1 + 0.37, 0.0).r * 0.3;
+    float cover = smoothstep(1.0 - u_cloudiness, 1.2 - 0.6 * u_cloudiness, nz + 0.3 * u_cloudiness);
+    vec3 cloud = mix(u_sky_horizon, vec3(1.0), 0.55) * (0.5 + 0.5 * (1.0 - u_cloudiness)) * (0.8 + 0.3 * nz);
+    col = mix(col, cloud, cover * smoothstep(0.0, 0.1, e));
+#endif
+    float haze = 1.0 - exp(-u_fog_density * 400.0 / (abs(e) * 6.0 + 1.0));
+    v_color = mix(col, u_fog_color, haze);
+    gl_Position = vec4(in_xy, 1.0, 1.0);
+}
+"""
+
+_SKY_FRAGMENT = """
+uniform float u_sky_depth;
+uniform uint u_sky_tag;
+in vec3 v_color;
+layout(location = 0) out vec4 f_color;
+layout(location = 1) out float f_depth;
+layout(location = 2) out uint f_tag;
+layout(location = 3) out uint f_instance;
+void main() {
+    f_color = vec4(clamp(v_color, 0.0, 1.0), 1.0);
+    f_depth = u_sky_depth;
+    f_tag = u_sky_tag;
+    f_instance = 0u;
+}
+"""
+
+
+def sky_vertex(clouds: bool) -> str:
+    """The sky vertex shader, with or without the cloud layer."""
+    return f"#version 330\n#define CLOUDS {int(clouds)}\n" + _SKY_VERTEX
+
+
+#: The sky fragment shader.
+SKY_FRAGMENT = "#version 330\n" + _SKY_FRAGMENT

@@ -1,0 +1,261 @@
+"""The Bench2Drive sensor rig of the builtin simulator: one capture per tick from a :class:`Snapshot`.
+
+The static scene (map mesh, then traffic-light and sign fixtures once the snapshot shows them) is uploaded to the
+renderer and to Embree once; each capture meshes the actors, renders the cameras, casts the LiDAR and radar rays
+into the same triangles, and reads IMU, GNSS and speedometer from the ego state.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from b2d_data.format.record import CameraFrame
+from b2d_data.format.rig import CAMERA_BY_FOLDER, CAMERAS, LIDAR, NOISE, RADARS_V0, RADARS_V004, TOP_DOWN, Mount
+from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.sim.api import ActorState, RigConfig, SensorData, Snapshot, TrafficLightState
+from b2d_data.sim.builtin.sensors.actor_mesh import ActorMeshBuilder
+from b2d_data.sim.builtin.sensors.fixture_mesh import (
+    Fixture,
+    fixture_key,
+    fixture_static_mesh,
+    fixtures_of_snapshot,
+    lamp_mesh,
+)
+from b2d_data.sim.builtin.sensors.imu_gnss import ImuGnss, geolocator_of
+from b2d_data.sim.builtin.sensors.lidar import Lidar, LidarSweep
+from b2d_data.sim.builtin.sensors.lighting import Lighting
+from b2d_data.sim.builtin.sensors.map_mesh import RoadLayout, StaticScene, build_static_scene, layout_from_map
+from b2d_data.sim.builtin.sensors.radar import Radar, RadarPose
+from b2d_data.sim.builtin.sensors.raycast import RayCaster
+from b2d_data.sim.builtin.sensors.renderer import CameraView, Renderer
+from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh, merge
+
+if TYPE_CHECKING:
+    from b2d_data.maps import Map
+
+Geolocator = Callable[[Location], tuple[float, float, float]]
+
+
+def mount_matrix(m: Mount) -> np.ndarray:
+    """Sensor → ego 4×4 of a mount (CARLA ``get_matrix``)."""
+    return Transform(Location(m.x, m.y, m.z), Rotation(pitch=m.pitch, yaw=m.yaw, roll=m.roll)).matrix()
+
+
+@dataclass
+class CaptureTimings:
+    """Seconds spent in each part of the last capture.
+
+    LiDAR and radar run on a worker thread while the cameras render, so ``wall`` (the whole capture) is less than
+    the sum of the parts when both overlap.
+    """
+
+    actors: float = 0.0
+    cameras: float = 0.0
+    top_down: float = 0.0
+    lidar: float = 0.0
+    radar: float = 0.0
+    imu_gnss: float = 0.0
+    wall: float = 0.0
+
+
+class SensorSuite:
+    """Renders and ray-casts the whole rig for an ego in a :class:`Snapshot` of a town."""
+
+    def __init__(self, map: Map | None, config: RigConfig = RigConfig(), seed: int = 0) -> None:  # noqa: A002
+        layout = layout_from_map(map) if map is not None else RoadLayout([])
+        self._setup(build_static_scene(layout, seed), config, seed, geolocator_of(map))
+        self.map = map
+
+    @classmethod
+    def from_scene(
+        cls,
+        scene: StaticScene,
+        config: RigConfig = RigConfig(),
+        seed: int = 0,
+        geolocate: Geolocator | None = None,
+    ) -> SensorSuite:
+        """A suite over an already built static scene (tests, benchmarks, layouts without a map)."""
+        suite = cls.__new__(cls)
+        suite._setup(scene, config, seed, geolocate or geolocator_of(None))
+        suite.map = None
+        return suite
+
+    def _setup(self, scene: StaticScene, config: RigConfig, seed: int, geolocate: Geolocator) -> None:
+        self.config = config
+        self.seed = seed
+        self.scene = scene
+        self._geolocate = geolocate
+        cams = [c for c in config.cameras if c in CAMERA_BY_FOLDER]
+        self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
+        self.renderer = Renderer() if self._camera_specs else None
+        if self.renderer is not None and len(scene.lamps):
+            self.renderer.set_lightmap(*scene.lightmap())
+        self.caster = RayCaster()
+        self.lidar = Lidar(LIDAR, config.lidar_azimuth_steps)
+        specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
+        self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
+        self.imu = ImuGnss(NOISE, seed)
+        self.actor_meshes = ActorMeshBuilder()
+        self.fixtures: list[Fixture] = []
+        self._fixture_key: tuple | None = None
+        self._lamp_cache: dict[tuple[int, TrafficLightState], TriangleMesh] = {}
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="b2d-rays")
+        self.timings = CaptureTimings()
+        self._set_static(scene.mesh)
+
+    def _set_static(self, mesh: TriangleMesh) -> None:
+        if self.renderer is not None:
+            self.renderer.set_static(mesh)
+        self.caster.set_static(mesh)
+
+    def _update_fixtures(self, snapshot: Snapshot) -> None:
+        key = fixture_key(snapshot)
+        if key == self._fixture_key:
+            return
+        self._fixture_key = key
+        self.fixtures = fixtures_of_snapshot(snapshot)
+        self._lamp_cache.clear()
+        self._set_static(merge([self.scene.mesh, fixture_static_mesh(self.fixtures)]))
+
+    # ------------------------------------------------------------------------------------------ poses
+    def sensor_poses(self, ego: ActorState) -> dict[str, np.ndarray]:
+        """Sensor → world 4×4 of every rig sensor, keyed by sensor id (CAM_*, TOP_DOWN, RADAR_*, LIDAR_TOP)."""
+        ego_m = ego.transform.matrix()
+        radars = RADARS_V004 if self.config.radar_v004_mounts else RADARS_V0
+        out = {c.sensor_id: ego_m @ mount_matrix(c.mount) for c in (*CAMERAS, TOP_DOWN)}
+        out.update({r.sensor_id: ego_m @ mount_matrix(r.mount) for r in radars})
+        out[LIDAR.sensor_id] = ego_m @ mount_matrix(LIDAR.mount)
+        return out
+
+    @staticmethod
+    def _point_velocity(ego: ActorState, point: np.ndarray) -> np.ndarray:
+        """World velocity of a point rigidly attached to the ego (yaw rate only)."""
+        v = ego.velocity.to_array()
+        yaw_rate = math.radians(ego.angular_velocity.z)
+        r = point - ego.transform.location.to_array()
+        return v + yaw_rate * np.array([-r[1], r[0], 0.0])
+
+    # ------------------------------------------------------------------------------------------ capture
+    def _lamps(self, states: dict[int, TrafficLightState]) -> TriangleMesh:
+        """Lamp meshes of every light in its current state (each (light, state) meshed once)."""
+        parts = []
+        for f in self.fixtures:
+            if f.kind != "traffic_light":
+                continue
+            state = states.get(f.instance_id, TrafficLightState.OFF)
+            key = (f.instance_id, state)
+            mesh = self._lamp_cache.get(key)
+            if mesh is None:
+                mesh = self._lamp_cache[key] = lamp_mesh([f], {f.instance_id: state})
+            parts.append(mesh)
+        return merge(parts)
+
+    def _cast_rays(self, snapshot: Snapshot, ego: ActorState, poses: dict[str, np.ndarray]):
+        """LiDAR sweep and radar detections (run on the worker thread while the cameras render)."""
+        t0 = time.perf_counter()
+        if self.config.lidar:
+            sweep = self.lidar.scan(self.caster, poses[LIDAR.sensor_id])
+        else:
+            sweep = LidarSweep(np.zeros((0, 3), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
+        t1 = time.perf_counter()
+        radar: dict[str, np.ndarray] = {}
+        if self.config.radar:
+            velocities = {a.id: a.velocity.to_array() for a in snapshot.actors.values()}
+            for r in self.radars:
+                pose = poses[r.spec.sensor_id]
+                rp = RadarPose(pose, self._point_velocity(ego, pose[:3, 3]))
+                radar[r.spec.dataset] = r.scan(self.caster, rp, snapshot.frame, velocities)
+        return sweep, radar, t1 - t0, time.perf_counter() - t1
+
+    def capture(self, snapshot: Snapshot, ego_id: int) -> SensorData:
+        """Every sensor of the rig at this snapshot."""
+        ego = snapshot.actors.get(ego_id)
+        if ego is None:
+            raise KeyError(f"ego actor {ego_id} is not in snapshot frame {snapshot.frame}")
+        cfg = self.config
+        t0 = time.perf_counter()
+        self._update_fixtures(snapshot)
+        light = Lighting.from_weather(snapshot.weather)
+        actor_parts = self.actor_meshes.build_parts(snapshot.actors, light.night > 0.5, snapshot.timestamp)
+        lamps = self._lamps({i: t.state for i, t in snapshot.traffic_lights.items()})
+        poses = self.sensor_poses(ego)
+        # The LiDAR and radars see everything but the ego (their rays start inside or next to its body).
+        self.caster.set_dynamic(merge([m for i, m in actor_parts if i != ego_id] + [lamps]))
+        # Embree releases the GIL: the rays are cast on a worker thread while the cameras render here.
+        rays = self._pool.submit(self._cast_rays, snapshot, ego, poses)
+        t1 = time.perf_counter()
+        timings = CaptureTimings(actors=t1 - t0)
+
+        cameras: dict[str, CameraFrame] = {}
+        try:
+            if self.renderer is not None:
+                cameras = self._render(ego, poses, actor_parts, lamps, light, timings)
+        finally:
+            # Never leave the worker running into the next capture, even when rendering failed.
+            sweep, radar, timings.lidar, timings.radar = rays.result()
+        t3 = time.perf_counter()
+        imu, gnss, speed = self.imu.read(ego, snapshot.frame, self._geolocate)
+        timings.imu_gnss = time.perf_counter() - t3
+        timings.wall = time.perf_counter() - t0
+        self.timings = timings
+        return SensorData(
+            frame=snapshot.frame,
+            cameras=cameras,
+            lidar=sweep.points,
+            lidar_tags=sweep.tags,
+            lidar_actor_ids=sweep.actor_ids,
+            radar=radar,
+            imu=imu,
+            gnss=gnss,
+            speed=speed,
+            sensor_transforms={k: Transform.from_matrix(m) for k, m in poses.items()},
+        )
+
+    def _render(
+        self,
+        ego: ActorState,
+        poses: dict[str, np.ndarray],
+        actor_parts: list[tuple[int, TriangleMesh]],
+        lamps: TriangleMesh,
+        light: Lighting,
+        timings: CaptureTimings,
+    ) -> dict[str, CameraFrame]:
+        """The six cameras (with dense labels when configured) and the top-down camera."""
+        cfg = self.config
+        t0 = time.perf_counter()
+        self.renderer.set_dynamic(merge([m for _, m in actor_parts] + [lamps]))
+        head = self._headlight(ego) if light.night > 0.0 else None
+        surround = [c for c in self._camera_specs if c.folder != TOP_DOWN.folder]
+        views = [CameraView(poses[c.sensor_id], c.fov, cfg.width, cfg.height, cfg.dense_labels) for c in surround]
+        cameras = dict(zip((c.folder for c in surround), self.renderer.render(views, light, head)))
+        t1 = time.perf_counter()
+        timings.cameras = t1 - t0
+        if any(c.folder == TOP_DOWN.folder for c in self._camera_specs):
+            view = CameraView(poses[TOP_DOWN.sensor_id], TOP_DOWN.fov, cfg.top_down_width, cfg.top_down_height, False)
+            cameras[TOP_DOWN.folder] = self.renderer.render([view], light, head)[0]
+        timings.top_down = time.perf_counter() - t1
+        return cameras
+
+    @staticmethod
+    def _headlight(ego: ActorState) -> tuple[np.ndarray, np.ndarray]:
+        """Ego headlight origin (front bumper, 0.7 m up) and beam direction (forward, 5° down)."""
+        m = ego.transform.matrix()
+        bb = ego.bounding_box
+        origin = m[:3, :3] @ np.array([bb.location.x + bb.extent.x, 0.0, 0.7]) + m[:3, 3]
+        a = math.radians(-5.0)
+        beam = m[:3, :3] @ np.array([math.cos(a), 0.0, math.sin(a)])
+        return origin, beam
+
+    def close(self) -> None:
+        """Release the GL context and the ray-casting thread."""
+        self._pool.shutdown(wait=True)
+        if self.renderer is not None:
+            self.renderer.close()
+            self.renderer = None

@@ -195,6 +195,10 @@ class RouteGraph:
     def _link_change(self, seg: _Segment, waypoint: Waypoint, target: Waypoint | None, option: RoadOption) -> bool:
         if target is None or target.lane_type != LaneType.DRIVING or target.road_id != waypoint.road_id:
             return False
+        # CARLA's planner does not check this, but a broken centre line must not turn a route into a
+        # wrong-way drive: only change into lanes that run the same way (same sign of lane id).
+        if (target.lane_id > 0) != (waypoint.lane_id > 0):
+            return False
         next_segment = self.localize(target.transform.location)
         if next_segment is None:
             return False

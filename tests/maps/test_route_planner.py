@@ -84,3 +84,20 @@ def test_unreachable_destination_raises(tiny_map):
     # Road 3 leads nowhere: there is no path from it back to road 1.
     with pytest.raises(RouteNotFoundError, match="Town90"):
         tiny_map.trace_route(NORTH_EXIT, ORIGIN_LANE_1)
+
+
+
+def test_no_lane_change_into_the_opposite_direction():
+    # The generated interurban town has broken centre lines that allow overtaking, so a lane change "left"
+    # reaches the opposite lane. CARLA's planner would route through it (209 of 315 routes between its spawn
+    # points did before the direction check); a route must never switch to a lane of the other direction.
+    from b2d_data.maps import load_opendrive
+    from b2d_data.maps.towngen import generate_town
+
+    town = load_opendrive(generate_town("interurban", 0), name="Interurban")
+    spawns = town.get_spawn_points()
+    routes = [town.trace_route(a.location, b.location) for a in spawns[::9] for b in spawns[4::13] if a != b]
+    assert len(routes) >= 6
+    for route in routes:
+        for (w1, _), (w2, _) in zip(route, route[1:]):
+            assert not (w1.road_id == w2.road_id and (w1.lane_id > 0) != (w2.lane_id > 0))

@@ -1,0 +1,92 @@
+"""The parquet corpus index: contents, incremental updates, archives, and the open time of a large corpus."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+
+from b2d_data import ClipDataset
+from b2d_data.format.names import ClipName
+from b2d_data.loaders import CorpusIndex
+from b2d_data.loaders.index import index_dir
+from b2d_data.loaders.synthetic import SyntheticClipSpec, fabricate_index, write_synthetic_clip
+from b2d_data.writers.archive import pack_clip
+
+from .conftest import CLIP_A, CLIP_B
+
+
+def _rows(index: CorpusIndex) -> dict[str, dict]:
+    return {r["name"]: r for r in index.clips.to_pylist()}
+
+
+def test_index_contents(corpus_copy: Path) -> None:
+    index, report = CorpusIndex.build(corpus_copy)
+    assert (index_dir(corpus_copy) / "clips.parquet").is_file() and (
+        index_dir(corpus_copy) / "frames.parquet"
+    ).is_file()
+    assert (index.num_clips, index.num_frames) == (2, 18) and sorted(report.scanned) == sorted(
+        [str(CLIP_A), str(CLIP_B)]
+    )
+    a, b = _rows(index)[str(CLIP_A)], _rows(index)[str(CLIP_B)]
+    assert (a["scenario"], a["town"], a["route_id"], a["weather_id"], a["n_frames"]) == ("Accident", "Town03", 1, 0, 12)
+    assert a["n_rgb_front"] == 12 and a["n_rgb_top_down"] == 0 and a["n_depth_npz_front"] == 0 and a["n_radar"] == 12
+    assert b["n_depth_npz_front"] == 6 and b["format_version"] == "bench2drive-v0.0.4"
+    frames = index.frames.slice(a["frame_start"], a["n_frames"]).to_pydict()
+    # Ego starts at (100, 200) with CARLA yaw 30° and drives 0.5 m per frame; GNSS is 1.4 m behind.
+    assert frames["ego_x"][0] == pytest.approx(100.0) and frames["ego_yaw"][0] == pytest.approx(math.radians(30))
+    assert frames["ego_x"][2] == pytest.approx(100.0 + math.cos(math.radians(30)) * 1.0)
+    assert frames["gnss_x"][0] == pytest.approx(100.0 - 1.4 * math.cos(math.radians(30)))
+    assert all(frames["has_expert"]) and frames["frame"] == list(range(12))
+    # A second open reads the files: same tables.
+    again = CorpusIndex.load(corpus_copy)
+    assert again is not None and again.clips.equals(index.clips.replace_schema_metadata(again.clips.schema.metadata))
+
+
+def test_incremental_update(corpus_copy: Path) -> None:
+    CorpusIndex.build(corpus_copy)
+    _, report = CorpusIndex.build(corpus_copy)
+    assert report.scanned == [] and report.reused == 2
+    new = ClipName.parse("ControlLoss_Town11_Route3_Weather11")
+    write_synthetic_clip(corpus_copy, SyntheticClipSpec(new, frames=3, dense=False, radar=False, expert=False))
+    index, report = CorpusIndex.build(corpus_copy)
+    assert report.scanned == [str(new)] and report.reused == 2 and index.num_frames == 21
+    time.sleep(0.01)
+    (corpus_copy / str(CLIP_A) / "camera" / "rgb_front" / "00011.jpg").unlink()  # a changed clip is rescanned
+    shutil.rmtree(corpus_copy / str(CLIP_B))  # a vanished clip is dropped
+    index, report = CorpusIndex.build(corpus_copy)
+    assert report.scanned == [str(CLIP_A)] and report.removed == [str(CLIP_B)] and report.reused == 1
+    assert _rows(index)[str(CLIP_A)]["n_rgb_front"] == 11
+
+
+def test_archives_are_hashed_and_listed(corpus_copy: Path) -> None:
+    info_a = pack_clip(corpus_copy / str(CLIP_A))
+    info_b = pack_clip(corpus_copy / str(CLIP_B))
+    shutil.rmtree(corpus_copy / str(CLIP_B))  # B exists only as its archive
+    index, _ = CorpusIndex.build(corpus_copy)
+    a, b = _rows(index)[str(CLIP_A)], _rows(index)[str(CLIP_B)]
+    archive_a = corpus_copy / f"{CLIP_A}.tar.gz"
+    assert a["sha256"] == hashlib.sha256(archive_a.read_bytes()).hexdigest() == info_a.sha256
+    assert a["archive_size"] == info_a.size and a["path"] == str(CLIP_A)
+    # The archive-only clip is listed from its members in the same pass that hashes it.
+    assert b["path"] == "" and b["sha256"] == info_b.sha256 and b["n_frames"] == 6 and b["n_depth_npz_front"] == 6
+    frames = index.frames.slice(b["frame_start"], b["n_frames"]).to_pydict()
+    assert frames["ego_x"][0] == pytest.approx(100.0)
+    # The dataset serves folders only: the archive-only clip is left out with a warning.
+    assert ClipDataset(corpus_copy, cameras=()).clip_names == [str(CLIP_A)]
+
+
+def test_opening_a_1000_clip_corpus_takes_under_a_second(tmp_path: Path) -> None:
+    fabricate_index(tmp_path, n_clips=1000, n_frames=200)
+    t0 = time.perf_counter()
+    ds = ClipDataset(tmp_path)
+    seconds = time.perf_counter() - t0
+    print(f"\nopened 1000 clips × 200 frames (index only) in {seconds * 1000:.0f} ms")
+    assert len(ds) == 200_000 and len(ds.clip_names) == 1000
+    assert seconds < 1.0
+    # Waypoints come from the index poses, so a frame's targets need no other annotation.
+    assert ds.frame_key(199_999) == (ds.clip_names[-1], 199)

@@ -57,10 +57,16 @@ def read_laz(
     if bytes(data[:4]) != b"LASF":
         raise B2DFormatError(label, "not a LAS/LAZ file (missing the LASF signature)")
     try:
-        las = laspy.read(io.BytesIO(data))
-        xyz = np.stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)], axis=1)
+        # Single-threaded lazrs: laspy's default LazrsParallel starts a rayon thread pool that deadlocks any
+        # process forked afterwards (e.g. DataLoader workers started after the parent decoded one sweep).
+        las = laspy.read(io.BytesIO(data), laz_backend=laspy.LazBackend.Lazrs)
+        raw = (las.X, las.Y, las.Z)
+        scales, offsets = las.header.scales, las.header.offsets
     except Exception as exc:  # laspy/lazrs raise many types (LaspyException, LazrsError, ValueError) on bad input
         raise B2DFormatError(label, f"corrupt or truncated LAZ: {exc}") from exc
-    if len(xyz) != las.header.point_count:
-        raise B2DFormatError(label, f"truncated LAZ: {len(xyz)} of {las.header.point_count} points")
-    return xyz.astype(dtype, copy=False)
+    if len(raw[0]) != las.header.point_count:
+        raise B2DFormatError(label, f"truncated LAZ: {len(raw[0])} of {las.header.point_count} points")
+    out = np.empty((len(raw[0]), 3), dtype)
+    for axis in range(3):
+        out[:, axis] = raw[axis] * scales[axis] + offsets[axis]
+    return out

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import io
 import json
 import logging
 import os
@@ -13,18 +12,17 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import laspy
 import numpy as np
 from torch.utils.data import Dataset
 
 from b2d_data import coords
 from b2d_data.codecs import layout
-from b2d_data.codecs._source import read_source
 from b2d_data.codecs.anno_json import read_anno
 from b2d_data.codecs.depth import read_depth_npz, read_depth_png
 from b2d_data.codecs.expert_npz import read_expert, split_expert
 from b2d_data.codecs.jpeg import read_jpeg
 from b2d_data.codecs.labels_png import read_instance_png, read_semantic_png
+from b2d_data.codecs.laz import read_laz
 from b2d_data.codecs.radar_h5 import RADAR_DATASETS, read_radar
 from b2d_data.format.errors import B2DFormatError
 from b2d_data.format.names import canonical_clip_prefix
@@ -57,30 +55,6 @@ class BadFrame:
     clip: str
     frame: int
     error: str
-
-
-def read_lidar(path: Path) -> np.ndarray:
-    """(N, 3) float32 points of a LAZ file (as stored: CARLA ego frame), decoded with laspy's single-threaded lazrs.
-
-    ``codecs.laz.read_laz`` lets laspy pick ``LazrsParallel``, whose rayon thread pool deadlocks any DataLoader
-    worker forked after the parent process decoded a sweep; this reader differs only in the backend and in
-    writing the scaled coordinates straight into one float32 array.
-    """
-    data, label = read_source(path)
-    if bytes(data[:4]) != b"LASF":
-        raise B2DFormatError(label, "not a LAS/LAZ file (missing the LASF signature)")
-    try:
-        las = laspy.read(io.BytesIO(data), laz_backend=laspy.LazBackend.Lazrs)
-        raw = (las.X, las.Y, las.Z)
-        scales, offsets = las.header.scales, las.header.offsets
-    except Exception as exc:  # laspy/lazrs raise many types (LaspyException, LazrsError, ValueError) on bad input
-        raise B2DFormatError(label, f"corrupt or truncated LAZ: {exc}") from exc
-    if len(raw[0]) != las.header.point_count:
-        raise B2DFormatError(label, f"truncated LAZ: {len(raw[0])} of {las.header.point_count} points")
-    out = np.empty((len(raw[0]), 3), np.float32)
-    for axis in range(3):
-        out[:, axis] = raw[axis] * scales[axis] + offsets[axis]
-    return out
 
 
 def worker_init_fn(worker_id: int) -> None:
@@ -337,7 +311,7 @@ class ClipDataset(Dataset):
         if self._cameras:
             self._load_cameras(sample, anno, clip_dir, frame, row)
         if opts.lidar:
-            sample["lidar"] = coords.to_frame_points(read_lidar(layout.lidar_path(clip_dir, frame)), frame_conv)
+            sample["lidar"] = coords.to_frame_points(read_laz(layout.lidar_path(clip_dir, frame), dtype=np.float32), frame_conv)
         if opts.radar:
             self._load_radar(sample, anno, clip_dir, frame, row)
         if opts.boxes:

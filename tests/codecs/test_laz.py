@@ -63,3 +63,26 @@ def test_corrupt_laz_names_the_file(tmp_path: Path) -> None:
             read_laz(tmp_path / name)
     with pytest.raises(ValueError):
         encode_laz(np.array([[0.0, np.nan, 1.0]]))
+
+
+def test_decoding_stays_usable_in_a_forked_child(tmp_path):
+    # A process forked after the parent decoded one sweep (a DataLoader worker started after `ds[0]`) must
+    # still decode: laspy's parallel lazrs backend left a rayon pool behind that hung such children forever.
+    import multiprocessing
+
+    import numpy as np
+
+    from b2d_data.codecs.laz import read_laz, write_laz
+
+    path = tmp_path / "00000.laz"
+    write_laz(path, np.random.default_rng(0).uniform(-50, 50, (20000, 3)))
+    parent = read_laz(path)
+    ctx = multiprocessing.get_context("fork")
+    child = ctx.Process(target=read_laz, args=(path,))
+    child.start()
+    child.join(timeout=30)
+    alive = child.is_alive()
+    if alive:
+        child.kill()
+    assert not alive and child.exitcode == 0
+    assert parent.shape == (20000, 3)

@@ -21,7 +21,7 @@ from b2d_data.format.anno_schema import (
     WALKER_KEYS,
 )
 from b2d_data.format.rig import ALL_CAMERAS, LIDAR, RADARS_V0, RADARS_V004, CameraSpec, Mount
-from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
+from b2d_data.format.transform import BoundingBox, Location, Transform
 from b2d_data.maps import Map
 from b2d_data.sim.api import (
     ActorKind,
@@ -45,11 +45,6 @@ _SIGN_PROPS = ("warning", "dirtdebris", "cone")
 def _r(values: np.ndarray | Sequence[float]) -> list:
     """Nested Python floats (json cannot write numpy scalars)."""
     return np.asarray(values, dtype=np.float64).tolist()
-
-
-def mount_transform(mount: Mount) -> Transform:
-    """The sensor pose of a rig mount relative to the ego origin."""
-    return Transform(Location(mount.x, mount.y, mount.z), Rotation(pitch=mount.pitch, yaw=mount.yaw, roll=mount.roll))
 
 
 def _waypoint_ids(world_map: Map, location: Location) -> tuple[int, int, int]:
@@ -349,7 +344,7 @@ def _camera_entry(spec: CameraSpec, world: Transform, width: int, height: int) -
         "rotation": world.rotation.to_anno(),
         "intrinsic": _r(spec.intrinsic(width, height)),
         "world2cam": _r(world.inverse_matrix()),
-        "cam2ego": _r(mount_transform(spec.mount).matrix()),
+        "cam2ego": _r(spec.mount.matrix()),
         "fov": float(spec.fov),
         "image_size_x": int(width),
         "image_size_y": int(height),
@@ -367,7 +362,7 @@ def sensor_calibrations(ego: ActorState, config: RigConfig,
     def world_pose(sensor_id: str, mount: Mount) -> Transform:
         if sensor_id in poses:
             return poses[sensor_id]
-        return Transform.from_matrix(ego.transform.matrix() @ mount_transform(mount).matrix())
+        return Transform.from_matrix(ego.transform.matrix() @ mount.matrix())
 
     out: dict[str, dict] = {}
     for spec in ALL_CAMERAS:
@@ -380,14 +375,14 @@ def sensor_calibrations(ego: ActorState, config: RigConfig,
             "location": pose.location.to_list(),
             "rotation": pose.rotation.to_anno(),
             "world2radar": _r(pose.inverse_matrix()),
-            "radar2ego": _r(mount_transform(radar.mount).matrix()),
+            "radar2ego": _r(radar.mount.matrix()),
         }
     pose = world_pose(LIDAR.sensor_id, LIDAR.mount)
     out[LIDAR.sensor_id] = {
         "location": pose.location.to_list(),
         "rotation": pose.rotation.to_anno(),
         "world2lidar": _r(pose.inverse_matrix()),
-        "lidar2ego": _r(mount_transform(LIDAR.mount).matrix()),
+        "lidar2ego": _r(LIDAR.mount.matrix()),
     }
     return out
 

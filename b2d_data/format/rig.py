@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from b2d_data.format.transform import Location, Rotation, Transform
+
 
 @dataclass(frozen=True)
 class Mount:
@@ -18,6 +20,14 @@ class Mount:
     roll: float = 0.0
     pitch: float = 0.0
     yaw: float = 0.0
+
+    def transform(self) -> Transform:
+        """The sensor pose relative to the ego origin."""
+        return Transform(Location(self.x, self.y, self.z), Rotation(pitch=self.pitch, yaw=self.yaw, roll=self.roll))
+
+    def matrix(self) -> np.ndarray:
+        """Sensor → ego 4×4 (CARLA ``get_matrix``): the ``cam2ego`` / ``lidar2ego`` / ``radar2ego`` of annotations."""
+        return self.transform().matrix()
 
 
 @dataclass(frozen=True)

@@ -138,15 +138,10 @@ def _sensor_pose(ego: Transform, mount_matrix: np.ndarray) -> tuple[list[float],
     return t.location.to_list(), t.rotation.to_anno(), np.linalg.inv(world).tolist()
 
 
-def _mount_matrix(mount: object) -> np.ndarray:
-    m = mount  # rig.Mount
-    return Transform(Location(m.x, m.y, m.z), Rotation(pitch=m.pitch, yaw=m.yaw, roll=m.roll)).matrix()  # type: ignore[attr-defined]
-
-
 def _sensors(spec: SyntheticClipSpec, ego: Transform) -> dict:
     sensors: dict[str, dict] = {}
     for cam in ALL_CAMERAS:
-        cam2ego = _mount_matrix(cam.mount)
+        cam2ego = cam.mount.matrix()
         loc, rot, world2cam = _sensor_pose(ego, cam2ego)
         sensors[cam.sensor_id] = {
             "location": loc, "rotation": rot, "intrinsic": cam.intrinsic(spec.width, spec.height).tolist(),
@@ -155,7 +150,7 @@ def _sensors(spec: SyntheticClipSpec, ego: Transform) -> dict:
         }  # fmt: skip
     radars = RADARS_V004 if spec.format_version is FormatVersion.V004 else RADARS_V0
     for radar in radars:
-        radar2ego = _mount_matrix(radar.mount)
+        radar2ego = radar.mount.matrix()
         loc, rot, world2radar = _sensor_pose(ego, radar2ego)
         sensors[radar.sensor_id] = {
             "location": loc,
@@ -163,7 +158,7 @@ def _sensors(spec: SyntheticClipSpec, ego: Transform) -> dict:
             "world2radar": world2radar,
             "radar2ego": radar2ego.tolist(),
         }
-    lidar2ego = _mount_matrix(LIDAR.mount)
+    lidar2ego = LIDAR.mount.matrix()
     loc, rot, world2lidar = _sensor_pose(ego, lidar2ego)
     sensors["LIDAR_TOP"] = {
         "location": loc,

@@ -218,7 +218,7 @@ def render_town_montage(
     """Render the rig at a place of a town (a few placed vehicles and walkers around) into a montage (RGB)."""
     from b2d_data.format.rig import CAMERAS
     from b2d_data.sim.api import RigConfig
-    from b2d_data.sim.builtin.sensors.suite import SensorSuite, mount_matrix
+    from b2d_data.sim.builtin.sensors.suite import SensorSuite
     from b2d_data.viz.town_scene import town_snapshot
 
     snapshot, ego_id = town_snapshot(town, place, weather, seed)
@@ -237,7 +237,7 @@ def render_town_montage(
         corners = actor.bounding_box.world_corners(actor.transform)
         boxes.append(ego.transform.inverse_transform_points(corners))
     images = {name: frame.rgb for name, frame in data.cameras.items() if name != "top_down"}
-    calib = {c.folder: (c.intrinsic(w, h), mount_matrix(c.mount)) for c in CAMERAS}
+    calib = {c.folder: (c.intrinsic(w, h), c.mount.matrix()) for c in CAMERAS}
     top = data.cameras.get("top_down")
     return make_montage(
         images, top.rgb if top is not None else None, data.lidar, np.array(boxes).reshape(-1, 8, 3), calib, tile_width

@@ -7,7 +7,7 @@ import numpy as np
 from b2d_data.format.rig import CAMERAS, camera
 from b2d_data.format.transform import BoundingBox, Location
 from b2d_data.format.weather import WeatherParameters
-from b2d_data.sim.builtin.sensors.suite import mount_matrix
+
 from b2d_data.viz.montage import lidar_bev, make_montage, project_boxes, render_town_montage
 
 
@@ -17,7 +17,7 @@ def _box(cx: float, cy: float, cz: float, hx: float, hy: float, hz: float) -> np
 
 def test_box_edges_project_where_k_and_cam2ego_put_them():
     spec = camera("front")
-    k, cam2ego = spec.intrinsic(160, 90), mount_matrix(spec.mount)
+    k, cam2ego = spec.intrinsic(160, 90), spec.mount.matrix()
     img = np.zeros((90, 160, 3), np.uint8)
     # Corners 0-1 form the vertical edge x = 11.3, y = 2 (ego); CAM_FRONT is at (0.8, 0, 1.6): 10.5 m ahead,
     # 2 m to the right, so the edge is drawn at u = 80 + f·2/10.5 for v between 45 ∓ f·1/10.5.
@@ -39,7 +39,7 @@ def test_lidar_bev_pixels_and_layout():
     assert bev[80, 110].any()
     assert bev.shape == (200, 200, 3)
     images = {c.folder: np.full((90, 160, 3), 60, np.uint8) for c in CAMERAS}
-    calib = {c.folder: (c.intrinsic(160, 90), mount_matrix(c.mount)) for c in CAMERAS}
+    calib = {c.folder: (c.intrinsic(160, 90), c.mount.matrix()) for c in CAMERAS}
     top = np.full((90, 160, 3), 120, np.uint8)
     out = make_montage(images, top, np.zeros((0, 3)), np.zeros((0, 8, 3)), calib, tile_width=160)
     # Two rows of 160×90 tiles, then a 1.5 × 90 row (top-down | LiDAR BEV).
@@ -76,7 +76,7 @@ def test_boxes_and_calibrations_from_an_annotation():
             {"class": "traffic_light", "center": [10.0, 30.0, 3.0], "extent": [0.25, 0.3, 0.6], "rotation": [0, 0, 90]},
         ],
         "sensors": {
-            "CAM_FRONT": {"intrinsic": front.intrinsic().tolist(), "cam2ego": mount_matrix(front.mount).tolist()},
+            "CAM_FRONT": {"intrinsic": front.intrinsic().tolist(), "cam2ego": front.mount.matrix().tolist()},
             "LIDAR_TOP": {"lidar2ego": np.eye(4).tolist()},
         },
     }

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from b2d_data.format.transform import Location, Rotation, Transform, Vector3D
+from b2d_data.format.transform import Location, Transform, Vector3D
 from b2d_data.maps import load_opendrive
 from b2d_data.sim.api import ActorSpec, VehicleControl, WalkerControl
 from b2d_data.sim.builtin.world import BuiltinSimulator

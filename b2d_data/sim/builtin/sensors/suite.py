@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from b2d_data.format.record import CameraFrame
-from b2d_data.format.rig import CAMERA_BY_FOLDER, CAMERAS, LIDAR, NOISE, RADARS_V0, RADARS_V004, TOP_DOWN, Mount
-from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.format.rig import CAMERA_BY_FOLDER, CAMERAS, LIDAR, NOISE, RADARS_V0, RADARS_V004, TOP_DOWN
+from b2d_data.format.transform import Location, Transform
 from b2d_data.sim.api import ActorState, RigConfig, SensorData, Snapshot, TrafficLightState
 from b2d_data.sim.builtin.sensors.actor_mesh import ActorMeshBuilder
 from b2d_data.sim.builtin.sensors.fixture_mesh import (
@@ -41,11 +41,6 @@ if TYPE_CHECKING:
     from b2d_data.maps import Map
 
 Geolocator = Callable[[Location], tuple[float, float, float]]
-
-
-def mount_matrix(m: Mount) -> np.ndarray:
-    """Sensor → ego 4×4 of a mount (CARLA ``get_matrix``)."""
-    return Transform(Location(m.x, m.y, m.z), Rotation(pitch=m.pitch, yaw=m.yaw, roll=m.roll)).matrix()
 
 
 @dataclass
@@ -129,9 +124,9 @@ class SensorSuite:
         """Sensor → world 4×4 of every rig sensor, keyed by sensor id (CAM_*, TOP_DOWN, RADAR_*, LIDAR_TOP)."""
         ego_m = ego.transform.matrix()
         radars = RADARS_V004 if self.config.radar_v004_mounts else RADARS_V0
-        out = {c.sensor_id: ego_m @ mount_matrix(c.mount) for c in (*CAMERAS, TOP_DOWN)}
-        out.update({r.sensor_id: ego_m @ mount_matrix(r.mount) for r in radars})
-        out[LIDAR.sensor_id] = ego_m @ mount_matrix(LIDAR.mount)
+        out = {c.sensor_id: ego_m @ c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
+        out.update({r.sensor_id: ego_m @ r.mount.matrix() for r in radars})
+        out[LIDAR.sensor_id] = ego_m @ LIDAR.mount.matrix()
         return out
 
     @staticmethod
@@ -179,7 +174,6 @@ class SensorSuite:
         ego = snapshot.actors.get(ego_id)
         if ego is None:
             raise KeyError(f"ego actor {ego_id} is not in snapshot frame {snapshot.frame}")
-        cfg = self.config
         t0 = time.perf_counter()
         self._update_fixtures(snapshot)
         light = Lighting.from_weather(snapshot.weather)

@@ -1,0 +1,220 @@
+"""Every constant of the PDM-Lite-style expert, in one dataclass.
+
+Sources (expert-and-scenarios.md §1, which transcribes ``autonomousvision/carla_garage`` [leaderboard_2]
+``team_code/config.py`` and the PDM-Lite modules): each field's comment names the section it comes from.
+Distances are in metres, speeds in m/s, times in seconds unless the name says otherwise. Lengths along the
+route are kept in metres here; the code converts them to route points with :attr:`ExpertConfig.points_per_meter`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+def _kmh(value: float) -> float:
+    return value / 3.6
+
+
+#: Linear-regression throttle parameters fitted by PDM-Lite on CARLA's Lincoln MKZ (§1.4); the 7th value is the
+#: brake ratio v / v_target above which the controller brakes.
+CARLA_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
+    1.1990342347353184, -0.8057602384167799, 1.710818710950062, 0.921890257450335, 1.556497522998393,
+    -0.7013479734904027, 1.031266635497984,
+)  # fmt: skip
+
+#: The same six-feature regression re-fitted for the builtin simulator's car (``sim/blueprints.py`` CAR_DYNAMICS:
+#: 3.8 m/s² − 0.075 m/s² per m/s at full throttle, 8 m/s² full brake, 0.25 m/s² rolling, 4e-4·v² drag). How:
+#: :func:`b2d_data.expert.longitudinal_controller.fit_linear_regression_params` with ``gain=2.0`` — least squares of
+#: the throttle that gives an acceleration of 2 m/s² per m/s of speed error (hold speed at zero error), from that
+#: model's exact inverse, on a grid of 121 speeds (0–120 km/h) × 12 errors (0–1.89 km/h). The brake ratio is kept.
+#: In closed loop it holds 2–25 m/s targets within −0.07 … +0.6 m/s without the brake pulses CARLA's fit shows here.
+BUILTIN_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
+    0.039967819680455846, 0.30170846342589847, 0.254426199300406, -279.7896903295491, -8.884050257847589,
+    18.4254759833086, 1.031266635497984,
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class ExpertConfig:
+    """Constants of expert-and-scenarios.md §1.10 (and the rest of §1), each with its source section."""
+
+    # --- timing and route resolution (§1.2, §1.10) ---
+    fps: float = 20.0  # simulation / bicycle-model rate
+    points_per_meter: int = 10  # dense route resolution
+    extra_route_length: int = 50  # predecessors prepended / successors appended, 1 m apart (§1.2 step 2)
+    parking_exit_start_distance: float = 2.0  # ego farther than this from the first point → ParkingExit (§1.2)
+    route_search_distance: float = 4.0  # route index moves to the nearest point within this (§1.2)
+    minimum_lane_width: float = 2.5  # narrow-lane fix threshold (§1.2 step 5)
+    speed_limit_spacing: float = 5.0  # speed limit looked up every 5 m along the route (§1.2 step 4)
+
+    # --- target speed (§1.3, §1.8) ---
+    ratio_target_speed_limit: float = 0.72  # v_des = 0.72 × speed limit
+    max_speed_in_junction: float = _kmh(64.0)  # cap when a junction is within the look-ahead
+    junction_lookahead: float = 30.0  # metres of route checked for junctions
+    default_overtake_speed: float = _kmh(50.0)  # two-way commit speed (§1.9)
+    overtake_speed_vehicle_opens_door: float = _kmh(40.0)  # VehicleOpensDoorTwoWays commit speed (§1.9)
+
+    # --- IDM (§1.4) ---
+    idm_max_acceleration: float = 24.0  # a
+    idm_braking_low_speed: float = 8.7  # b below the threshold
+    idm_braking_high_speed: float = 3.72  # b above the threshold
+    idm_braking_threshold: float = 6.02  # m/s
+    idm_acceleration_exponent: float = 4.0  # δ
+    idm_t_bound: float = 0.05  # integration horizon (one frame)
+    idm_leading_vehicle_s0: float = 4.0
+    idm_leading_vehicle_T: float = 0.25
+    idm_bicycle_s0: float = 4.0
+    idm_bicycle_T: float = 0.25
+    idm_pedestrian_s0: float = 4.0
+    idm_pedestrian_T: float = 0.25
+    idm_red_light_s0: float = 6.0
+    idm_red_light_T: float = 0.1
+    idm_stop_sign_s0: float = 2.0
+    idm_stop_sign_T: float = 0.1
+    idm_two_way_s0: float = 2.0
+    idm_two_way_T: float = 0.1
+
+    # --- longitudinal controller (§1.4) ---
+    longitudinal_controller: str = "linear_regression"  # or "pid" (ablation)
+    linear_regression_params: tuple[float, ...] = CARLA_LINEAR_REGRESSION_PARAMS
+    linear_regression_min_target_speed: float = 0.278  # m/s, targets below are raised to this
+    linear_regression_max_acceleration: float = 1.89  # km/h of speed error above which throttle = 1
+    linear_regression_max_deceleration: float = -4.82  # km/h of speed error below which the forecast throttle is 0
+    pid_kp: float = 1.0016429066823955
+    pid_kd: float = 1.5761818624794222
+    pid_ki: float = 0.2941563856687906
+    pid_brake_ratio: float = 1.0324622059220139
+    pid_min_target_speed: float = 0.278
+
+    # --- lateral controller (§1.5) ---
+    lateral_kp: float = 3.118357247806046
+    lateral_kd: float = 1.3782508892109167
+    lateral_ki: float = 0.6406067986034124
+    lateral_speed_scale: float = 0.9755321901954155  # look-ahead points per km/h
+    lateral_speed_offset: float = 1.9152884533402488  # look-ahead points at standstill
+    lateral_min_lookahead: float = 2.4  # m
+    lateral_max_lookahead: float = 10.5  # m
+    lateral_window_size: int = 6  # errors averaged for the integral term
+    steer_noise: float = 1e-3  # σ of the Gaussian noise added to the applied steer (§1.3 step 5)
+
+    # --- kinematic bicycle model (§1.6) ---
+    rear_wheel_base: float = 1.4178275  # l_r
+    front_wheel_base: float = -0.090769015  # l_f
+    steering_gain: float = 0.36848336  # wheel angle per unit steer
+    other_brake_acceleration: float = -4.952399  # m/s², other vehicles braking
+    other_throttle_acceleration: float = 0.5633837  # m/s² per unit throttle, other vehicles
+    ego_throttle_poly: tuple[float, ...] = (
+        9.63873001e-01, 4.37535692e-04, -3.80192912e-01, 1.74950069e00, 9.16787414e-02, -7.05461530e-02,
+        -1.05996152e-03, 6.71079346e-04,
+    )  # fmt: skip
+    ego_brake_poly: tuple[float, ...] = (
+        9.31711370e-03, 8.20967431e-02, -2.83832427e-03, 5.06587474e-05, -4.90357228e-07, 2.44419284e-09,
+        -4.91381935e-12,
+    )  # fmt: skip
+    ego_throttle_threshold: float = 0.3  # below this the ego forecast keeps its speed
+
+    # --- forecasting and collision checks (§1.6) ---
+    detection_radius: float = 50.0
+    forecast_length: float = 2.0  # s
+    forecast_length_lane_change: float = 1.1  # s, near a lane change
+    lane_change_lookbehind: float = 15.0  # CHANGELANE commands this far behind count as "near"
+    lane_change_min_lookahead: float = 20.0  # … and at least this far ahead
+    braking_distance_safety: float = 10.0  # added to (v[km/h]/10)²/2
+    other_vehicle_slow_speed: float = 1.0  # m/s: below, forecast boxes keep their size
+    other_vehicle_extent_x_factor: float = 1.2
+    other_vehicle_extent_x_factor_lane_change: float = 2.0
+    other_vehicle_min_extent_y_factor: float = 1.0
+    other_vehicle_extent_y_factor: float = 1.3  # × i / N, at least the minimum above
+    ego_slow_speed: float = 5.0  # m/s: below, the ego's forecast boxes keep their size
+    ego_extent_x_factor: float = 1.3
+    ego_extent_y_factor: float = 1.2
+    min_walker_speed: float = 0.5
+    walker_min_extent: float = 1.5  # half extent in x and y
+    leading_max_route_distance: float = 2.5
+    leading_max_yaw_difference: float = 35.0  # degrees
+    leading_detection_length: float = 80.0
+    trailing_max_route_distance: float = 3.0
+    trailing_max_route_distance_lane_change: float = 6.0
+    trailing_max_yaw_difference: float = 30.0
+    trailing_detection_length: float = 80.0
+    trailing_lane_change_lookbehind: float = 15.0
+    #: CARLA's forecast reads ``brake`` through an unsigned-int cast, so only a full brake counts (§1.6).
+    other_vehicle_brake_threshold: float = 1.0
+
+    # --- lights and stop signs (§1.2, §1.7) ---
+    traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this
+    traffic_light_route_end_margin: float = 4.0  # the last 4 m of the route report no light
+    stop_sign_lookahead: float = 4.0  # 9 lane waypoints 0.5 m apart
+    stop_sign_step: float = 0.5
+    stop_sign_min_extent: float = 1.0
+    stop_sign_box_multiplier: float = 1.2
+    stop_sign_max_distance: float = 4.0
+    stop_sign_clearing_distance: float = 3.0
+    stop_sign_clearing_speed: float = 0.1
+    stop_sign_unclearing_distance: float = 10.0
+    light_radius: float = 15.0  # lights / stop signs within this are reported for the dataset (§1.7)
+    light_box_half_extent: tuple[float, float, float] = (1.5, 1.5, 0.5)  # their boxes in the dataset (§1.7)
+
+    # --- anti-creep / anti-block (§1.3 step 6) ---
+    min_speed_prevent_rolling_back: float = 0.5
+    blocked_speed: float = 0.1
+    max_blocked_ticks: int = 170
+
+    # --- obstacle scenarios (§1.9) ---
+    max_distance_to_process_scenario: float = 50.0
+    max_distance_hazard_at_side_lane: float = 25.0
+    max_distance_hazard_at_side_lane_two_ways: float = 10.0
+    transition_length: float = 8.0  # Accident, ParkedObstacle, HazardAtSideLane*, YieldToEmergencyVehicle
+    transition_length_construction: float = 10.5
+    transition_length_two_ways: float = 4.0
+    lane_transition_factor_two_ways: dict[str, float] = field(default_factory=lambda: {
+        "AccidentTwoWays": 1.0, "ConstructionObstacleTwoWays": 1.0, "ParkedObstacleTwoWays": 0.6,
+        "VehicleOpensDoorTwoWays": 0.475,
+    })  # fmt: skip
+    extra_length_two_ways: dict[str, float] = field(default_factory=lambda: {
+        "AccidentTwoWays": -1.5, "ConstructionObstacleTwoWays": 1.5, "ParkedObstacleTwoWays": -0.5,
+        "VehicleOpensDoorTwoWays": -2.0,
+    })  # fmt: skip  (the same value before and after the obstacle)
+    max_distance_to_overtake_two_ways: float = 8.0  # decision window before the shift start
+    two_way_wait_offset: float = 1.5  # IDM target 1.5 m past the shift start while waiting
+    distance_to_delete_two_ways: float = 2.0  # commit ends this far before the shift end
+    hazard_two_ways_extra_length: float = 13.5  # beyond the last bicycle
+    emergency_shift_start: float = 30.0
+    emergency_shift_length: float = 20.0
+    emergency_extension_length: float = 20.0
+    invading_turn_start: float = 15.0  # before the first cone
+    invading_turn_end: float = 10.0  # after the last cone
+    invading_turn_search_offset: float = 10.0  # the last cone is searched from 10 m after the first
+    invading_turn_fence_margin: float = 0.3
+    path_clear_safety_distance: float = 10.0
+    path_clear_safety_time: float = 0.2
+    path_clear_lane_trace_distance: int = 100  # metres (1 m steps) the target lane is traced back
+    min_time_params: tuple[float, float, float, float] = (0.00904221, 0.00733342, -0.03744807, 0.0235038)
+
+    # --- TCP-style should_brake heuristic (format.md §3.1) ---
+    tcp_vehicle_min_distance: float = 7.5
+    tcp_vehicle_time: float = 2.0  # look-ahead = max(min distance, time × speed)
+    tcp_vehicle_heading_limit: float = 60.0
+    tcp_vehicle_cone: float = 30.0
+    tcp_vehicle_straight_cone: float = 15.0
+    tcp_walker_ray: float = 10.0
+    tcp_walker_back: float = 3.0
+    tcp_walker_length: float = 8.0
+
+    # --- recorded route samples (§1.11) ---
+    route_record_first: float = 2.5
+    route_record_points: int = 20
+
+    @property
+    def dt(self) -> float:
+        """Seconds per simulation frame."""
+        return 1.0 / self.fps
+
+    def points(self, metres: float) -> int:
+        """A route length in metres as a number of dense route points."""
+        return round(metres * self.points_per_meter)
+
+    @classmethod
+    def for_builtin(cls) -> ExpertConfig:
+        """The default config with the throttle regression re-fitted for the builtin simulator's dynamics."""
+        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS)

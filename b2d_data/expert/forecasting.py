@@ -1,0 +1,208 @@
+"""Forecast boxes of the ego, other vehicles and walkers, and sort vehicles into leading / trailing (§1.6).
+
+All forecasts are at the simulation rate (20 Hz) over 2.0 s, or 1.1 s near a lane change. Collision checks are
+between the ego's box at frame i and every actor's box at the same frame i (:mod:`b2d_data.expert.obb`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from b2d_data.expert.config import ExpertConfig
+from b2d_data.expert.kinematic_bicycle import forecast_ego, slip_angle
+from b2d_data.expert.lateral_controller import LateralPIDController
+from b2d_data.expert.longitudinal_controller import LinearRegressionController, PIDLongitudinalController
+from b2d_data.expert.obb import overlap_many, yaw_axes
+from b2d_data.expert.route_processing import DenseRoute
+from b2d_data.sim.api import ActorState, VehicleControl, WalkerControl
+
+
+@dataclass(frozen=True)
+class BoxTrack:
+    """Forecast boxes of one actor over F frames: centres (F, 3), yaws (F,) in radians, half extents (F, 3)."""
+
+    actor_id: int
+    centres: np.ndarray
+    yaws: np.ndarray
+    extents: np.ndarray
+
+
+def num_future_frames(config: ExpertConfig, near_lane_change: bool) -> int:
+    """Forecast horizon in frames (40 normally, 22 near a lane change)."""
+    seconds = config.forecast_length_lane_change if near_lane_change else config.forecast_length
+    return int(config.fps * seconds)
+
+
+def _box_offset(actor: ActorState, yaw: np.ndarray) -> np.ndarray:
+    """World offset (F, 3) of the bounding-box centre from the actor origin for headings ``yaw``."""
+    loc = actor.bounding_box.location
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.stack([c * loc.x - s * loc.y, s * loc.x + c * loc.y, np.full_like(yaw, loc.z)], axis=-1)
+
+
+def valid_vehicle(actor: ActorState) -> bool:
+    """Vehicles with a real box (CARLA's bugged two-wheelers have zero extents and are ignored)."""
+    e = actor.bounding_box.extent
+    return min(e.x, e.y, e.z) >= 1e-3
+
+
+def forecast_vehicles(config: ExpertConfig, vehicles: list[ActorState], frames: int,
+                      near_lane_change: bool) -> list[BoxTrack]:
+    """Kinematic-bicycle forecasts of other vehicles holding their last applied control (§1.6)."""
+    if not vehicles or frames <= 0:
+        return []
+    n = len(vehicles)
+    x = np.array([v.location.x for v in vehicles])
+    y = np.array([v.location.y for v in vehicles])
+    z = np.array([v.location.z for v in vehicles])
+    yaw = np.radians([v.transform.rotation.yaw for v in vehicles])
+    speed = np.array([v.speed() for v in vehicles])
+    controls = [v.control if isinstance(v.control, VehicleControl) else VehicleControl() for v in vehicles]
+    steer = np.array([c.steer for c in controls])
+    throttle = np.array([c.throttle for c in controls])
+    brake = np.array([c.brake for c in controls])
+    xs, ys, yaws, speeds = (np.empty((frames, n)) for _ in range(4))
+    braking = brake >= config.other_vehicle_brake_threshold
+    accel = np.where(braking, config.other_brake_acceleration, throttle * config.other_throttle_acceleration)
+    beta = slip_angle(config, steer)  # constant: the control is held over the horizon
+    dt = config.dt
+    turn = np.sin(beta) / config.rear_wheel_base * dt
+    for i in range(frames):
+        heading = yaw + beta
+        x = x + speed * np.cos(heading) * dt
+        y = y + speed * np.sin(heading) * dt
+        yaw = yaw + speed * turn
+        speed = np.maximum(0.0, speed + dt * accel)
+        xs[i], ys[i], yaws[i], speeds[i] = x, y, yaw, speed
+    tracks = []
+    x_factor_fast = (config.other_vehicle_extent_x_factor_lane_change if near_lane_change
+                     else config.other_vehicle_extent_x_factor)
+    growth = np.arange(frames) / frames
+    for k, vehicle in enumerate(vehicles):
+        e = vehicle.bounding_box.extent
+        slow = speeds[:, k] < config.other_vehicle_slow_speed
+        # boxes of moving vehicles grow with the horizon to cover forecasting errors
+        fx = np.where(slow, 1.0, np.maximum(x_factor_fast, config.other_vehicle_extent_x_factor * growth))
+        fy = np.where(slow, 1.0, np.maximum(config.other_vehicle_min_extent_y_factor,
+                                            config.other_vehicle_extent_y_factor * growth))
+        extents = np.stack([e.x * fx, e.y * fy, np.full(frames, e.z)], axis=1)
+        centres = np.stack([xs[:, k], ys[:, k], np.full(frames, z[k])], axis=1) + _box_offset(vehicle, yaws[:, k])
+        tracks.append(BoxTrack(vehicle.id, centres, yaws[:, k].copy(), extents))
+    return tracks
+
+
+def forecast_walkers(config: ExpertConfig, walkers: list[ActorState], frames: int) -> list[BoxTrack]:
+    """Constant-velocity forecasts along each walker's control direction, speed ≥ 0.5 m/s, boxes ≥ 3 × 3 m."""
+    tracks = []
+    steps = np.arange(1, frames + 1)[:, None] * config.dt
+    for walker in walkers:
+        control = walker.control if isinstance(walker.control, WalkerControl) else WalkerControl()
+        direction = np.array([control.direction.x, control.direction.y, control.direction.z])
+        speed = max(walker.speed(), config.min_walker_speed)
+        yaw = math.radians(walker.transform.rotation.yaw + walker.bounding_box.rotation.yaw)
+        origin = np.array([walker.location.x, walker.location.y, walker.location.z])
+        yaws = np.full(frames, yaw)
+        centres = origin[None, :] + steps * direction[None, :] * speed + _box_offset(walker, yaws)
+        e = walker.bounding_box.extent
+        extent = np.array([max(e.x, config.walker_min_extent), max(e.y, config.walker_min_extent), e.z])
+        tracks.append(BoxTrack(walker.id, centres, yaws, np.tile(extent, (frames, 1))))
+    return tracks
+
+
+def forecast_ego_boxes(config: ExpertConfig, ego: ActorState, route: DenseRoute, lateral: LateralPIDController,
+                       longitudinal: LinearRegressionController | PIDLongitudinalController, target_speed: float,
+                       frames: int) -> BoxTrack:
+    """The ego driving the route at the *unreduced* target speed, assuming it does not brake (§1.6).
+
+    Steering re-runs the lateral PID on the route at each forecast pose; the route index, the PID history and the
+    longitudinal state are restored afterwards.
+    """
+    route.save()
+    lateral.save_state()
+    longitudinal.save()
+    try:
+        x, y = ego.location.x, ego.location.y
+        z = ego.location.z
+        yaw = math.radians(ego.transform.rotation.yaw)
+        speed = ego.speed()
+        throttle = longitudinal.get_throttle_extrapolation(target_speed, speed)
+        steer = lateral.step(route.points[route.index :], speed, np.array([x, y]), yaw)
+        centres, yaws = np.empty((frames, 3)), np.empty(frames)
+        for i in range(frames):
+            x, y, yaw, speed = forecast_ego(config, x, y, yaw, speed, steer, throttle, False)
+            route.update_index(np.array([x, y]))
+            steer = lateral.step(route.points[route.index :], speed, np.array([x, y]), yaw)
+            throttle = longitudinal.get_throttle_extrapolation(target_speed, speed)
+            centres[i] = (x, y, z)
+            yaws[i] = yaw
+    finally:
+        route.load()
+        lateral.load_state()
+        longitudinal.load()
+    e = ego.bounding_box.extent
+    # the ego's boxes grow with its *current* speed; standing still they keep the real size
+    fast = ego.speed() >= config.ego_slow_speed
+    fx, fy = (config.ego_extent_x_factor, config.ego_extent_y_factor) if fast else (1.0, 1.0)
+    extents = np.tile(np.array([e.x * fx, e.y * fy, e.z]), (frames, 1))
+    return BoxTrack(ego.id, centres + _box_offset(ego, yaws), yaws, extents)
+
+
+def colliding(ego: BoxTrack, others: list[BoxTrack]) -> list[int]:
+    """Ids of the actors whose forecast box overlaps the ego's box at the same frame, in the given order."""
+    if not others:
+        return []
+    frames = min([ego.centres.shape[0]] + [t.centres.shape[0] for t in others])
+    count = len(others)
+    # every (actor, frame) pair in one vectorised separating-axis test
+    centres = np.stack([t.centres[:frames] for t in others])
+    yaws = np.stack([t.yaws[:frames] for t in others])
+    extents = np.stack([t.extents[:frames] for t in others])
+    ego_c = np.broadcast_to(ego.centres[:frames], (count, frames, 3))
+    ego_e = np.broadcast_to(ego.extents[:frames], (count, frames, 3))
+    ego_axes = np.broadcast_to(yaw_axes(ego.yaws[:frames]), (count, frames, 3, 3))
+    hit = overlap_many(ego_c, ego_axes, ego_e, centres, yaw_axes(yaws), extents).any(axis=1)
+    return [t.actor_id for t, h in zip(others, hit) if h]
+
+
+def _route_corridor(points: np.ndarray, headings: np.ndarray, vehicles: list[ActorState]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per vehicle: distance to the nearest sampled route point and |yaw − route heading| there (degrees)."""
+    loc = np.array([[v.location.x, v.location.y] for v in vehicles])
+    d = np.linalg.norm(loc[:, None, :] - points[None, :, :2], axis=2)
+    nearest = d.argmin(axis=1)
+    yaw = np.array([v.transform.rotation.yaw for v in vehicles])
+    diff = np.abs((headings[nearest] - yaw + 180.0) % 360.0 - 180.0)
+    return d.min(axis=1), diff
+
+
+def leading_vehicle_ids(config: ExpertConfig, route: DenseRoute, vehicles: list[ActorState]) -> set[int]:
+    """Vehicles within 2.5 m of the next 80 m of route (sampled every metre) and heading within 35° of it."""
+    if not vehicles or route.index >= len(route):
+        return set()
+    end = route.index + config.points(config.leading_detection_length)
+    step = config.points_per_meter
+    points = route.points[route.index : end : step]
+    headings = route.headings[route.index : end : step]
+    dist, diff = _route_corridor(points, headings, vehicles)
+    keep = (dist < config.leading_max_route_distance) & (diff < config.leading_max_yaw_difference)
+    return {v.id for v, k in zip(vehicles, keep) if k}
+
+
+def trailing_vehicle_ids(config: ExpertConfig, route: DenseRoute, vehicles: list[ActorState]) -> set[int]:
+    """Vehicles within 3 m (6 m after a recent lane change) of the last 80 m of route, heading within 30°."""
+    if not vehicles or route.index == 0:
+        return set()
+    max_dist = (config.trailing_max_route_distance_lane_change if route.lane_changed_recently()
+                else config.trailing_max_route_distance)
+    start = max(0, route.index - config.points(config.trailing_detection_length))
+    step = config.points_per_meter
+    points = route.points[start : route.index : step]
+    headings = route.headings[start : route.index : step]
+    if points.shape[0] == 0:
+        return set()
+    dist, diff = _route_corridor(points, headings, vehicles)
+    keep = (dist < max_dist) & (diff < config.trailing_max_yaw_difference)
+    return {v.id for v, k in zip(vehicles, keep) if k}

@@ -1,0 +1,404 @@
+"""Box overlap, route resampling and shifting, stop-sign logic, forecasts and the path-clear test."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from b2d_data.expert.config import ExpertConfig
+from b2d_data.expert.forecasting import (
+    BoxTrack,
+    colliding,
+    forecast_vehicles,
+    forecast_walkers,
+    leading_vehicle_ids,
+    num_future_frames,
+    trailing_vehicle_ids,
+)
+from b2d_data.expert.hazard_heuristic import segments_cross, vehicle_hazard, walker_hazard
+from b2d_data.expert.lights_and_signs import StopSignTracker, point_in_trigger, stop_sign_centre
+from b2d_data.expert.obb import OrientedBox, boxes_overlap
+from b2d_data.expert.obstacle_scenarios import is_overtaking_path_clear, min_time_for_distance
+from b2d_data.expert.route_processing import light_governs_mask, resample, route_headings
+from b2d_data.expert.route_shifting import extend_shift, shift_route_smoothly, smooth_transition
+from b2d_data.format.road_option import RoadOption
+from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
+from b2d_data.sim.api import TrafficLightInfo, TrafficLightState, TrafficSignInfo, VehicleControl
+
+CFG = ExpertConfig()
+
+
+# ------------------------------------------------------------------------------------------------ SAT / OBB
+def _box(x: float, y: float = 0.0, z: float = 0.0, yaw: float = 0.0, ext=(1.0, 1.0, 1.0)) -> OrientedBox:
+    return OrientedBox.from_yaw((x, y, z), ext, yaw)
+
+
+def test_axis_aligned_boxes():
+    assert boxes_overlap(_box(0.0), _box(1.9))  # extents 1 + 1 > 1.9
+    assert not boxes_overlap(_box(0.0), _box(2.1))
+    assert not boxes_overlap(_box(0.0), _box(0.0, z=2.5))  # stacked: separated along z
+
+
+def test_rotated_box_overlap():
+    # B turned 45°: its half width along A's x axis is √2 ≈ 1.414, so the limit is 1 + 1.414 = 2.414
+    assert boxes_overlap(_box(0.0), _box(2.3, yaw=45.0))
+    assert not boxes_overlap(_box(0.0), _box(2.5, yaw=45.0))
+
+
+def test_cross_axis_separation():
+    # long thin boxes crossing diagonally in plan but at different heights overlap only if z overlaps
+    a = _box(0.0, ext=(5.0, 0.2, 0.5))
+    b = _box(0.0, yaw=90.0, ext=(5.0, 0.2, 0.5))
+    assert boxes_overlap(a, b)
+    assert not boxes_overlap(a, _box(0.0, z=1.2, yaw=90.0, ext=(5.0, 0.2, 0.5)))
+
+
+def test_corners_2d():
+    corners = _box(1.0, 2.0, yaw=90.0, ext=(2.0, 1.0, 1.0)).corners_2d()
+    # yaw 90° in CARLA's frame: the box's x axis points +y
+    assert np.allclose(sorted(corners[:, 0]), [0.0, 0.0, 2.0, 2.0])
+    assert np.allclose(sorted(corners[:, 1]), [0.0, 0.0, 4.0, 4.0])
+
+
+# ------------------------------------------------------------------------------------------- resampling
+def test_resample_spacing_and_commands():
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0]])
+    cmds = [RoadOption.LANEFOLLOW, RoadOption.LANEFOLLOW, RoadOption.RIGHT, RoadOption.RIGHT]
+    out, out_cmds, nearest = resample(pts, cmds, 10)
+    assert out.shape == (31, 3)  # 3 m of polyline at 0.1 m, both ends included
+    assert np.allclose(np.linalg.norm(np.diff(out[:, :2], axis=0), axis=1), 0.1)
+    assert np.allclose(out[25], [2.0, 0.5, 0.0])
+    # nearest original point: 1.4 m → point 1, 1.6 m → point 2
+    assert nearest[14] == 1 and nearest[16] == 2
+    assert out_cmds[14] is RoadOption.LANEFOLLOW and out_cmds[16] is RoadOption.RIGHT
+
+
+def test_route_headings():
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]])
+    # middle point: from (0,0) to (1,1) → 45°; ends copy their neighbour
+    assert np.allclose(route_headings(pts), [45.0, 45.0, 45.0])
+
+
+def _light(stop_x: float, yaw: float = 0.0, state=TrafficLightState.RED) -> TrafficLightInfo:
+    class _StopWp:
+        transform = Transform(Location(stop_x, 0.0, 0.0), Rotation(yaw=yaw))
+        lane_width = 3.5
+
+    return TrafficLightInfo(
+        id=7, transform=Transform(Location(stop_x, 4.0, 0.0), Rotation(yaw=yaw + 90.0)), state=state,
+        trigger_volume=BoundingBox(Location(), Location(1.75, 1.5, 1.0)), stop_waypoints=(_StopWp(),),
+        affected_lane_waypoints=(), group_id=0, opendrive_id="7", level_bbox=BoundingBox(Location(), Location()),
+        level_bbox_transform=Transform(),
+    )  # fmt: skip
+
+
+def test_light_governs_points_up_to_5m_before_the_stop_line(make_route):
+    route = make_route(50.0)
+    mask = light_governs_mask(CFG, route.original_points, route.headings, _light(30.0))
+    governed = np.flatnonzero(mask)
+    assert governed.min() == 250 and governed.max() == 300  # 25 m … 30 m
+    # a light for the opposite direction on the same spot governs nothing
+    assert not light_governs_mask(CFG, route.original_points, route.headings, _light(30.0, yaw=180.0)).any()
+
+
+# ----------------------------------------------------------------------------------------- route shifting
+def test_smooth_transition():
+    assert smooth_transition(0.0) == 0.0
+    assert smooth_transition(0.5) == pytest.approx(0.5)
+    assert smooth_transition(0.25) == pytest.approx((1 - math.cos(math.pi / 4)) / 2)
+    assert smooth_transition(1.0) == pytest.approx(1.0)
+
+
+def test_shift_route_smoothly_cosine_ramps(make_route):
+    route = make_route(40.0)
+    # shift left (−y, lanes 3.5 m apart) over points [100, 300) with 8 m (80 point) ramps
+    shift_route_smoothly(route, 100, 300, True, 80)
+    y = route.points[:, 1]
+    assert y[99] == 0.0 and y[100] == pytest.approx(0.0)
+    assert y[120] == pytest.approx(-3.5 * (1 - math.cos(math.pi * 0.25)) / 2)  # k = 0.146
+    assert y[140] == pytest.approx(-1.75)  # k = 0.5 halfway up the ramp
+    assert y[180] == pytest.approx(-3.5) and y[200] == pytest.approx(-3.5)
+    assert y[260] == pytest.approx(-1.75)  # halfway down: (300 − 260) / 80
+    assert y[300] == 0.0
+    assert route.commands[120] is RoadOption.CHANGELANELEFT
+    assert route.commands[200] is RoadOption.LANEFOLLOW
+    assert route.commands[250] is RoadOption.CHANGELANERIGHT
+    assert np.all(route.original_points[:, 1] == 0.0)  # the original copy is never shifted
+
+
+def test_shift_route_partial_factor(make_route):
+    route = make_route(40.0)
+    shift_route_smoothly(route, 100, 300, False, 40, factor=0.6)  # right (+y), 60 % of the way
+    assert route.points[200, 1] == pytest.approx(0.6 * 3.5)
+    assert route.points[120, 1] == pytest.approx(0.6 * 3.5 * 0.5)  # (120 − 100) / 40 = 0.5
+
+
+def test_extend_shift_moves_the_return_ramp(make_route):
+    route = make_route(60.0)
+    shift_route_smoothly(route, 100, 300, True, 80)
+    end = extend_shift(route, 300 - 80, 450, True, 80)
+    assert end == 450 - 80
+    assert route.points[300, 1] == pytest.approx(-3.5)  # formerly the end of the shift, now fully shifted
+    assert route.points[410, 1] == pytest.approx(-1.75)  # halfway down the new ramp
+    assert route.points[450, 1] == 0.0
+    assert route.commands[420] is RoadOption.CHANGELANERIGHT
+
+
+def test_closest_index(make_route):
+    route = make_route(50.0)
+    assert route.closest_index(0, np.array([12.34, 1.0])) == 123
+    assert route.closest_index(400, np.array([12.34, -1.0])) == 123
+
+
+def test_route_index_moves_at_most_4m(make_route):
+    route = make_route(50.0)
+    assert route.update_index(np.array([2.0, 0.3])) == 20
+    assert route.update_index(np.array([30.0, 0.0])) == 20 + 39  # only the next 40 points are searched
+
+
+# ----------------------------------------------------------------------------------------------- stop signs
+def _stop_sign(x: float) -> TrafficSignInfo:
+    # pole beside an east-bound lane, actor x axis across the lane (yaw 90°); trigger centre on the lane at x
+    return TrafficSignInfo(
+        id=3, type_id="traffic.stop", transform=Transform(Location(x, 3.0, 0.0), Rotation(yaw=90.0)),
+        trigger_volume=BoundingBox(Location(-3.0, 0.0, 1.0), Location(1.75, 1.5, 1.0)),
+        level_bbox=BoundingBox(Location(), Location()), level_bbox_transform=Transform(),
+    )  # fmt: skip
+
+
+def test_stop_sign_trigger_box():
+    sign = _stop_sign(20.0)
+    assert np.allclose(stop_sign_centre(sign), [20.0, 0.0, 1.0])
+    # along the lane the box is 1.5 × 1.2 = 1.8 m each way, across 1.75 × 1.2 = 2.1 m
+    assert point_in_trigger(np.array([21.7, 0.0, 0.0]), sign, CFG)
+    assert not point_in_trigger(np.array([21.9, 0.0, 0.0]), sign, CFG)
+    assert point_in_trigger(np.array([20.0, 2.0, 0.0]), sign, CFG)
+    assert not point_in_trigger(np.array([20.0, 2.2, 0.0]), sign, CFG)
+
+
+def test_stop_sign_clearing_logic():
+    sign = _stop_sign(20.0)
+    tracker = StopSignTracker(CFG)
+    # 5 m/s, 3 m away: s* = 2 + 0.5 + 25 / (2·√(24·8.7)) = 3.365 m > 3 m, so IDM brakes
+    target, distance = tracker.target_speed(8.0, 5.0, np.array([17.0, 0.0, 1.0]), sign)
+    assert distance == pytest.approx(3.0) and target < 5.0 and not tracker.cleared
+    # slow (0.2 m/s) and close: not cleared yet
+    tracker.target_speed(8.0, 0.2, np.array([17.5, 0.0, 1.0]), sign)
+    assert not tracker.cleared
+    # below 0.1 m/s and within 3 m: cleared, no constraint any more
+    target, _ = tracker.target_speed(8.0, 0.05, np.array([17.5, 0.0, 1.0]), sign)
+    assert tracker.cleared and target == 8.0
+    # driving on through the junction it stays cleared …
+    target, _ = tracker.target_speed(8.0, 4.0, np.array([27.0, 0.0, 1.0]), sign)
+    assert tracker.cleared and target == 8.0
+    # … until it is more than 10 m away
+    tracker.target_speed(8.0, 6.0, np.array([30.5, 0.0, 1.0]), sign)
+    assert not tracker.cleared
+    assert tracker.target_speed(8.0, 6.0, np.array([0.0, 0.0, 1.0]), None) == (8.0, math.inf)
+
+
+# ---------------------------------------------------------------------------------------------- forecasts
+def test_horizon():
+    assert num_future_frames(CFG, False) == 40
+    assert num_future_frames(CFG, True) == 22
+
+
+def test_vehicle_forecast_boxes_grow(make_vehicle):
+    car = make_vehicle(5, 0.0, 0.0, speed=10.0, control=VehicleControl(throttle=0.0))
+    (track,) = forecast_vehicles(CFG, [car], 40, near_lane_change=False)
+    assert np.allclose(track.centres[:, 0], 0.5 * np.arange(1, 41))  # constant 10 m/s
+    assert np.allclose(track.extents[:, 0], 2.4 * 1.2)  # ×1.2 along (max(1.2, 1.2·i/N))
+    assert track.extents[0, 1] == pytest.approx(1.0)  # ×max(1, 1.3·0/40)
+    assert track.extents[39, 1] == pytest.approx(1.0 * 1.3 * 39 / 40)
+    (slow,) = forecast_vehicles(CFG, [make_vehicle(6, 0.0, 0.0, speed=0.5)], 40, near_lane_change=True)
+    assert np.allclose(slow.extents[:, :2], [2.4, 1.0])  # below 1 m/s: real size
+    (lc,) = forecast_vehicles(CFG, [car], 22, near_lane_change=True)
+    assert np.allclose(lc.extents[:, 0], 2.4 * 2.0)
+
+
+def test_walker_forecast(make_walker):
+    (track,) = forecast_walkers(CFG, [make_walker(9, 5.0, -3.0, direction=(0.0, 1.0), speed=0.2)], 40)
+    # speed raised to 0.5 m/s; 40 steps of 0.05 s → 1 m
+    assert track.centres[-1, 1] == pytest.approx(-2.0)
+    assert np.allclose(track.extents[:, :2], 1.5)
+
+
+def test_colliding_uses_same_frame(make_vehicle):
+    frames = 10
+    ego = BoxTrack(1, np.stack([np.arange(frames) * 1.0, np.zeros(frames), np.zeros(frames)], axis=1),
+                   np.zeros(frames), np.tile([2.0, 1.0, 1.0], (frames, 1)))
+    # the other box is where the ego will be at frame 9, but only at frame 0 → no hit
+    other = BoxTrack(2, np.tile([9.0, 0.0, 0.0], (frames, 1)) + np.array([[0.0, 10.0 * (i > 0), 0.0]
+                                                                          for i in range(frames)]),
+                     np.zeros(frames), np.tile([2.0, 1.0, 1.0], (frames, 1)))
+    assert colliding(ego, [other]) == []
+    still = BoxTrack(3, np.tile([9.0, 0.0, 0.0], (frames, 1)), np.zeros(frames), np.tile([2.0, 1.0, 1.0], (frames, 1)))
+    assert colliding(ego, [still]) == [3]
+
+
+def test_leading_and_trailing_vehicles(make_route, make_vehicle):
+    route = make_route(200.0)
+    route.index = 500  # ego at x = 50
+    cars = [
+        make_vehicle(1, 70.0, 1.0),  # ahead, in lane → leading
+        make_vehicle(2, 70.0, 3.5),  # ahead, next lane → neither
+        make_vehicle(3, 70.0, 0.0, yaw=90.0),  # ahead but crossing → neither
+        make_vehicle(4, 35.0, 0.5),  # behind in lane → trailing
+        make_vehicle(5, 140.0, 0.0),  # 90 m ahead: beyond 80 m of route… but within 2.5 m of its last sample
+    ]
+    assert leading_vehicle_ids(CFG, route, cars) == {1}
+    assert trailing_vehicle_ids(CFG, route, cars) == {4}
+
+
+# ------------------------------------------------------------------------------------------ TCP heuristic
+def test_segments_cross():
+    assert segments_cross(np.zeros(2), np.array([10.0, 0.0]), np.array([5.0, -3.0]), np.array([0.0, 8.0]))
+    assert not segments_cross(np.zeros(2), np.array([10.0, 0.0]), np.array([12.0, -3.0]), np.array([0.0, 8.0]))
+
+
+def test_tcp_vehicle_and_walker_hazards(make_vehicle, make_walker):
+    ego = make_vehicle(1, 0.0, 0.0, speed=2.0, role="hero")
+    assert vehicle_hazard(CFG, ego, [ego, make_vehicle(2, 6.0, 0.5)]) == 2  # 6 m ahead, same heading
+    assert vehicle_hazard(CFG, ego, [make_vehicle(2, 9.0, 0.0)]) is None  # beyond max(7.5, 2·2)
+    assert vehicle_hazard(CFG, ego, [make_vehicle(2, -5.0, 0.0)]) is None  # behind
+    assert vehicle_hazard(CFG, ego, [make_vehicle(2, 6.0, 0.0, yaw=180.0)]) == 2  # head-on, straight ahead
+    assert vehicle_hazard(CFG, ego, [make_vehicle(2, 6.0, 2.5, yaw=180.0)]) is None  # oncoming, next lane
+    assert walker_hazard(CFG, ego, [make_walker(3, 6.0, -2.0, direction=(0.0, 1.0))]) == 3
+    assert walker_hazard(CFG, ego, [make_walker(3, 6.0, 4.0, direction=(0.0, 1.0))]) is None
+
+
+# ------------------------------------------------------------------------------------- path-clear (§1.9)
+def test_min_time_for_distance():
+    # capped at the current speed: 5.25 m at 10 m/s = 0.525 s
+    assert min_time_for_distance(CFG, 5.25, 10.0, 10.0) == pytest.approx(0.525)
+    # from standstill: first tick covers 0 m, then the polynomial adds 120·0.00904221 = 1.085 m/s per tick
+    t = min_time_for_distance(CFG, 20.0, 50 / 3.6, 0.0)
+    assert 1.5 < t < 2.5
+
+
+class _LaneMap:
+    """get_waypoint → a fake waypoint whose lane is −1 for y > 0 (ego lane) and 1 for y < 0 (opposite)."""
+
+    def get_waypoint(self, location):
+        class _Wp:
+            road_id = 1
+            lane_id = -1 if location.y > 0 else 1
+
+        return _Wp()
+
+
+def test_path_clear(make_route, make_vehicle):
+    route = make_route(100.0)
+    ego = make_vehicle(1, 0.0, 1.75, speed=5.0, role="hero")
+    lanes = {(1, 1)}
+    to_index = 300  # shift end 30 m ahead
+    clear = is_overtaking_path_clear(CFG, _LaneMap(), route, ego, [ego], to_index, 8.0, lanes, 50 / 3.6)
+    assert clear
+    # oncoming car 100 m ahead at 10 m/s reaches the shift end in (70 − 2.4)/10 = 6.8 s > ego's time: clear
+    far = make_vehicle(2, 100.0, -1.75, yaw=180.0, speed=10.0)
+    assert is_overtaking_path_clear(CFG, _LaneMap(), route, ego, [ego, far], to_index, 8.0, lanes, 50 / 3.6)
+    # 40 m ahead at 10 m/s: (10 − 2.4)/10 = 0.76 s → blocked
+    near = make_vehicle(3, 40.0, -1.75, yaw=180.0, speed=10.0)
+    assert not is_overtaking_path_clear(CFG, _LaneMap(), route, ego, [ego, near], to_index, 8.0, lanes, 50 / 3.6)
+    # already inside the overtaking zone (shift end behind it)
+    inside = make_vehicle(4, 20.0, -1.75, yaw=180.0, speed=0.0)
+    assert not is_overtaking_path_clear(CFG, _LaneMap(), route, ego, [ego, inside], to_index, 8.0, lanes, 50 / 3.6)
+    # behind the ego: ignored
+    behind = make_vehicle(5, -20.0, -1.75, yaw=180.0, speed=10.0)
+    assert is_overtaking_path_clear(CFG, _LaneMap(), route, ego, [ego, behind], to_index, 8.0, lanes, 50 / 3.6)
+
+
+def test_vehicle_forecast_matches_the_one_step_model(make_vehicle):
+    from b2d_data.expert.kinematic_bicycle import forecast_other_vehicles
+
+    control = VehicleControl(throttle=0.7, steer=-0.3)
+    (track,) = forecast_vehicles(CFG, [make_vehicle(5, 1.0, 2.0, yaw=30.0, speed=7.0, control=control)], 40, False)
+    x, y, yaw, v = np.array([1.0]), np.array([2.0]), np.radians([30.0]), np.array([7.0])
+    for _ in range(40):
+        x, y, yaw, v = forecast_other_vehicles(CFG, x, y, yaw, v, np.array([-0.3]), np.array([0.7]), np.zeros(1))
+    assert track.centres[-1, :2] == pytest.approx([x[0], y[0]])
+    assert track.yaws[-1] == pytest.approx(yaw[0])
+
+
+# ------------------------------------------------------------------------------------ scenario handling
+def test_invading_turn_offsets_route_to_the_right(make_route):
+    from b2d_data.expert.route_shifting import shift_route_for_invading_turn
+
+    route = make_route(100.0)
+    start, end = shift_route_for_invading_turn(route, np.array([40.0, 0.0]), np.array([60.0, 0.0]), 1.2)
+    assert (start, end) == (400 - 150, 600 + 100)  # 15 m before the first cone, 10 m after the last
+    assert np.allclose(route.points[start:end, 1], 1.2)  # +y is right of an east-bound route
+    assert route.points[start - 1, 1] == 0.0 and route.points[end, 1] == 0.0
+    # next to a shoulder the offset keeps 0.3 m from the fence
+    shoulder = make_route(100.0, right_type=__import__("b2d_data.maps", fromlist=["LaneType"]).LaneType.SHOULDER)
+    shift_route_for_invading_turn(shoulder, np.array([40.0, 0.0]), np.array([60.0, 0.0]), 1.2)
+    assert shoulder.points[500, 1] == pytest.approx(0.9)
+
+
+def _snapshot(actors):
+    from b2d_data.format.weather import ROUTE_DEFAULT
+    from b2d_data.sim.api import Snapshot
+
+    return Snapshot(frame=1, timestamp=0.05, actors={a.id: a for a in actors}, traffic_lights={}, traffic_signs={},
+                    collisions=(), weather=ROUTE_DEFAULT)
+
+
+def test_obstacle_manager_handles_the_nearest_live_scenario(make_route, make_vehicle):
+    from b2d_data.expert.obstacle_scenarios import ObstacleScenarioManager
+    from b2d_data.sim.api import ScenarioHint
+
+    route = make_route(200.0)
+    ego = make_vehicle(1, 0.0, 0.0, role="hero")
+    near, far = make_vehicle(2, 40.0, 1.2), make_vehicle(3, 120.0, 1.2)
+    snap = _snapshot([ego, near, far])
+    manager = ObstacleScenarioManager(CFG, town=None)
+    hints = [ScenarioHint("ParkedObstacle", 3, 3, "right"), ScenarioHint("ParkedObstacle", 2, 2, "right"),
+             ScenarioHint("ParkedObstacle", 99, 99, "right")]  # actor 99 is gone: dropped
+    result = manager.step(snap, ego, route, hints, 8.0)
+    assert result.scenario == "ParkedObstacle" and not result.keep_driving and result.target_speed == 8.0
+    # the near car (40 m) was handled: shift from 40 − 2.4 − 8 m to 40 + 2.4 + 8 m, to the left (−y)
+    assert manager.records[("ParkedObstacle", 2)].done
+    assert (manager.records[("ParkedObstacle", 2)].from_index, manager.records[("ParkedObstacle", 2)].to_index) == (
+        296, 504)  # fmt: skip
+    assert route.points[400, 1] == pytest.approx(-3.5)
+    # the far one (120 m) is beyond 50 m: next frame it is the nearest but still too far to shift
+    manager.step(snap, ego, route, hints, 8.0)
+    assert not manager.records[("ParkedObstacle", 3)].changed_route
+    assert route.points[1200, 1] == 0.0
+
+
+def test_two_way_obstacle_waits_then_commits(make_route, make_vehicle):
+    from b2d_data.expert.obstacle_scenarios import ObstacleScenarioManager
+    from b2d_data.sim.api import ScenarioHint
+
+    route = make_route(200.0)
+    route.index = 300  # ego at x = 30
+    ego = make_vehicle(1, 30.0, 0.0, speed=3.0, role="hero")
+    parked = make_vehicle(2, 60.0, 1.2)
+    oncoming = make_vehicle(3, 90.0, -3.5, yaw=180.0, speed=8.0)
+    hint = ScenarioHint("ParkedObstacleTwoWays", 2, 2, "right")
+    manager = ObstacleScenarioManager(CFG, town=_LaneMap())
+    result = manager.step(_snapshot([ego, parked, oncoming]), ego, route, [hint], 8.0)
+    record = manager.records[("ParkedObstacleTwoWays", 2)]
+    # shift [60 − 2.4 − 4 + 0.5, 60 + 2.4 + 4 − 0.5] m, 60 % of the way into the opposite lane
+    assert (record.from_index, record.to_index) == (541, 659)
+    assert route.points[600, 1] == pytest.approx(-0.6 * 3.5)
+    # the shift starts 24 m ahead (> 8 m): wait with IDM toward 1.5 m past the shift start
+    assert not result.keep_driving and result.reduced_by is not None
+    assert result.reduced_by.distance == pytest.approx((541 + 15 - 300) / 10)
+    # closer than 8 m to the shift start with an oncoming car 30 m away: still waiting
+    route.index = 480
+    ego = make_vehicle(1, 48.0, 0.0, speed=0.0, role="hero")
+    oncoming = make_vehicle(3, 80.0, -3.5, yaw=180.0, speed=8.0)
+    result = manager.step(_snapshot([ego, parked, oncoming]), ego, route, [hint], 8.0)
+    assert not result.keep_driving and not record.path_clear
+    # once the oncoming car has passed (behind the ego), commit at 50 km/h without forecasting
+    oncoming = make_vehicle(3, 30.0, -3.5, yaw=180.0, speed=8.0)
+    result = manager.step(_snapshot([ego, parked, oncoming]), ego, route, [hint], 8.0)
+    assert result.keep_driving and result.target_speed == pytest.approx(50 / 3.6)
+    # the commitment ends 2 m before the shift end
+    route.index = 640
+    manager.step(_snapshot([ego, parked]), ego, route, [hint], 8.0)
+    assert record.done

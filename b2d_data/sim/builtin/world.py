@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,39 +125,13 @@ class _Actor:
 
 
 def _load_map(town: Map | str | Path) -> Map:
-    """A Map from a Map, an .xodr path, a generated-town preset (name or town name, seed 0) or a CARLA town name.
+    """A Map from a Map, an .xodr path, a generated preset or a CARLA town name (see ``maps.towns``)."""
+    from b2d_data.maps.towns import UnknownTownError, resolve_town
 
-    CARLA town names are looked up in ``$B2D_CARLA_MAPS`` (a folder of ``<Town>.xodr``), else in the shared data
-    folder beside the checkout.
-    """
-    if not isinstance(town, (str, Path)):
-        return town
-    from b2d_data.maps import load_opendrive
-
-    path = Path(town)
-    if path.suffix.lower() == ".xodr" or path.exists():
-        if not path.is_file():
-            raise SimulatorError(f"OpenDRIVE file {path} does not exist")
-        return load_opendrive(path)
-    name = str(town)
-    from b2d_data.maps import towngen
-
-    presets = {p.name: p for p in towngen.TOWN_PRESETS.values()}
-    presets.update({p.town: p for p in towngen.TOWN_PRESETS.values()})
-    if name in presets:
-        preset = presets[name]
-        folder = Path(tempfile.mkdtemp(prefix="b2d_town_"))
-        return load_opendrive(towngen.write_town(preset.name, 0, folder / f"{preset.town}.xodr"))
-    folders = [Path(os.environ["B2D_CARLA_MAPS"])] if os.environ.get("B2D_CARLA_MAPS") else []
-    folders.append(Path(__file__).resolve().parents[4] / "shared" / "data" / "carla_maps")
-    for folder in folders:
-        if (folder / f"{name}.xodr").is_file():
-            return load_opendrive(folder / f"{name}.xodr")
-    known = ", ".join(sorted(presets))
-    raise SimulatorError(
-        f"unknown town {name!r}: pass a Map, an .xodr path, a generated preset ({known}), or a CARLA town "
-        f"whose .xodr is in $B2D_CARLA_MAPS"
-    )
+    try:
+        return resolve_town(town)
+    except UnknownTownError as exc:
+        raise SimulatorError(str(exc)) from None
 
 
 class BuiltinSimulator:

@@ -144,10 +144,6 @@ class ExpertConfig:
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this
     traffic_light_route_end_margin: float = 4.0  # the last 4 m of the route report no light
-    stop_sign_lookahead: float = 4.0  # 9 lane waypoints 0.5 m apart
-    stop_sign_step: float = 0.5
-    stop_sign_min_extent: float = 1.0
-    stop_sign_box_multiplier: float = 1.2
     stop_sign_max_distance: float = 4.0
     stop_sign_clearing_distance: float = 3.0
     stop_sign_clearing_speed: float = 0.1

@@ -16,47 +16,20 @@ from b2d_data.expert.config import ExpertConfig
 from b2d_data.expert.idm import idm_target_speed
 from b2d_data.format.transform import Location
 from b2d_data.sim.api import TrafficLightInfo, TrafficLightState, TrafficSignInfo
+from b2d_data.sim.traffic_rules import stop_affects, stop_trigger_centre, stop_zone_waypoints
 
 if TYPE_CHECKING:
     from b2d_data.maps import Map
 
 
 def stop_sign_centre(sign: TrafficSignInfo) -> np.ndarray:
-    """World position of the sign's trigger-volume centre."""
-    c = sign.transform.transform_point(sign.trigger_volume.location)
-    return np.array([c.x, c.y, c.z])
+    """World position of the sign's trigger-volume centre, as an array."""
+    return stop_trigger_centre(sign).to_array()
 
 
-def point_in_trigger(point: np.ndarray, sign: TrafficSignInfo, config: ExpertConfig) -> bool:
-    """Is ``point`` inside the sign's trigger box, extents at least 1 m and enlarged ×1.2, in the horizontal plane?
-
-    The box is tested in its own (rotated) frame.
-    """
-    local = sign.transform.inverse_transform_points(np.asarray(point, dtype=np.float64)[None, :])[0]
-    tv = sign.trigger_volume
-    half_x = config.stop_sign_box_multiplier * max(tv.extent.x, config.stop_sign_min_extent)
-    half_y = config.stop_sign_box_multiplier * max(tv.extent.y, config.stop_sign_min_extent)
-    return abs(local[0] - tv.location.x) < half_x and abs(local[1] - tv.location.y) < half_y
-
-
-def stop_sign_affects(town: Map, location: np.ndarray, sign: TrafficSignInfo, config: ExpertConfig) -> bool:
-    """RunningStopTest's test: within 4 m of the trigger centre and one of 9 lane waypoints (0.5 m apart) inside it."""
-    location = np.asarray(location, dtype=np.float64)
-    if np.linalg.norm(stop_sign_centre(sign) - location) > config.stop_sign_max_distance:
-        return False
-    wp = town.get_waypoint(Location(*location))
-    if wp is None:
-        return False
-    steps = round(config.stop_sign_lookahead / config.stop_sign_step)
-    for _ in range(steps + 1):
-        loc = wp.transform.location
-        if point_in_trigger(np.array([loc.x, loc.y, loc.z]), sign, config):
-            return True
-        nxt = wp.next(config.stop_sign_step)
-        if not nxt:
-            break
-        wp = nxt[0]
-    return False
+def stop_sign_affects(town: Map, location: np.ndarray, sign: TrafficSignInfo) -> bool:
+    """RunningStopTest's test at ``location`` (the shared definition in ``sim/traffic_rules.py``)."""
+    return stop_affects(stop_zone_waypoints(town, Location(*np.asarray(location, dtype=np.float64))), sign)
 
 
 def red_light_target_speed(config: ExpertConfig, desired_speed: float, ego_speed: float, distance: float,

@@ -312,7 +312,7 @@ def _compute_stop_signs(dense: DenseRoute, town: Map, signs: Mapping[int, Traffi
         if np.min(np.linalg.norm(centres - p[None, :], axis=1)) >= config.stop_sign_max_distance:
             continue
         for sign_id, sign in stops:
-            if stop_sign_affects(town, p, sign, config):
+            if stop_sign_affects(town, p, sign):
                 belongs[i] = sign_id
                 break
     next_stop: int | None = None

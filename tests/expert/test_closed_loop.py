@@ -157,7 +157,7 @@ def test_stops_at_stop_sign_and_clears_it(carla_maps_dir):
                  until=lambda snap, e: expert.stop_signs.cleared and e.location.distance_2d(Location(*centre)) > 12.0)
     stopped_in_zone = [
         i for i, v in enumerate(log.speed)
-        if v < 0.1 and stop_sign_affects(sim.map, np.array([*log.location[i], 0.0]), sign, CONFIG)
+        if v < 0.1 and stop_sign_affects(sim.map, np.array([*log.location[i], 0.0]), sign)
     ]  # fmt: skip
     assert stopped_in_zone, "never stood still where the stop sign applies (RunningStopTest would fire)"
     assert not log.collisions

@@ -18,7 +18,8 @@ from b2d_data.expert.forecasting import (
     trailing_vehicle_ids,
 )
 from b2d_data.expert.hazard_heuristic import segments_cross, vehicle_hazard, walker_hazard
-from b2d_data.expert.lights_and_signs import StopSignTracker, point_in_trigger, stop_sign_centre
+from b2d_data.expert.lights_and_signs import StopSignTracker, stop_sign_centre
+from b2d_data.sim.traffic_rules import inside_stop_box
 from b2d_data.expert.obb import OrientedBox, boxes_overlap
 from b2d_data.expert.obstacle_scenarios import is_overtaking_path_clear, min_time_for_distance
 from b2d_data.expert.route_processing import light_governs_mask, resample, route_headings
@@ -171,11 +172,13 @@ def _stop_sign(x: float) -> TrafficSignInfo:
 def test_stop_sign_trigger_box():
     sign = _stop_sign(20.0)
     assert np.allclose(stop_sign_centre(sign), [20.0, 0.0, 1.0])
-    # along the lane the box is 1.5 × 1.2 = 1.8 m each way, across 1.75 × 1.2 = 2.1 m
-    assert point_in_trigger(np.array([21.7, 0.0, 0.0]), sign, CFG)
-    assert not point_in_trigger(np.array([21.9, 0.0, 0.0]), sign, CFG)
-    assert point_in_trigger(np.array([20.0, 2.0, 0.0]), sign, CFG)
-    assert not point_in_trigger(np.array([20.0, 2.2, 0.0]), sign, CFG)
+    # The shared rule is CARLA's axis-aligned test: extent x (1.75) along world x, y (1.5) along world y, ×1.2,
+    # even though this trigger volume's actor is turned 90°: half sizes 2.1 m in x and 1.8 m in y.
+    centre, extent = Location(20.0, 0.0, 1.0), sign.trigger_volume.extent
+    assert inside_stop_box(Location(22.0, 0.0, 0.0), centre, extent)
+    assert not inside_stop_box(Location(22.2, 0.0, 0.0), centre, extent)
+    assert inside_stop_box(Location(20.0, 1.7, 0.0), centre, extent)
+    assert not inside_stop_box(Location(20.0, 1.9, 0.0), centre, extent)
 
 
 def test_stop_sign_clearing_logic():

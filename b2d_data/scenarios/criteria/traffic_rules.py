@@ -17,6 +17,7 @@ from b2d_data.scenarios.criteria.base import (
     segments_intersect,
 )
 from b2d_data.sim.api import ActorState, Snapshot, TrafficLightInfo, TrafficLightState, TrafficSignInfo
+from b2d_data.sim.traffic_rules import stop_affects, stop_zone_waypoints
 
 if TYPE_CHECKING:
     from b2d_data.maps import Map, Waypoint
@@ -117,11 +118,6 @@ class RunningRedLightTest(Criterion):
                     break
 
 
-def _inside_box(point: Location, center: Location, extent: Location, multiplier: float = 1.2) -> bool:
-    """The criterion's axis-aligned box test (the trigger volume's rotation is ignored, as in scenario_runner)."""
-    return abs(point.x - center.x) < multiplier * extent.x and abs(point.y - center.y) < multiplier * extent.y
-
-
 class RunningStopTest(Criterion):
     """A stop sign affecting the ego must see it below 0.1 m/s before it leaves the sign's zone.
 
@@ -131,9 +127,7 @@ class RunningStopTest(Criterion):
     """
 
     name = "RunningStopTest"
-    PROXIMITY_THRESHOLD = 4.0  # m
     SPEED_THRESHOLD = 0.1  # m/s
-    WAYPOINT_STEP = 0.5  # m
     #: Without a target, stops farther than this from the ego cannot be picked up (the ego's lane waypoint is
     #: within a lane width of it, and a stop must be within 4 m of that waypoint): skip the waypoint walk.
     SCAN_RADIUS = 50.0  # m
@@ -147,26 +141,11 @@ class RunningStopTest(Criterion):
         self._last_failed_stop: int | None = None
 
     def _waypoints(self, location: Location) -> list[Waypoint]:
-        wp = self.map.get_waypoint(location)
-        if wp is None:
-            return []
-        out = [wp]
-        for _ in range(int(self.PROXIMITY_THRESHOLD / self.WAYPOINT_STEP)):
-            nxt = wp.next(self.WAYPOINT_STEP)
-            if not nxt:
-                break
-            wp = nxt[0]
-            out.append(wp)
-        return out
+        return stop_zone_waypoints(self.map, location)
 
     def is_affected(self, waypoints: Sequence[Waypoint], stop: TrafficSignInfo) -> bool:
         """Whether the lane waypoints ahead of the ego reach into the stop's trigger volume."""
-        if not waypoints:
-            return False
-        center = stop.transform.transform_point(stop.trigger_volume.location)
-        if center.distance(waypoints[0].transform.location) > self.PROXIMITY_THRESHOLD:
-            return False
-        return any(_inside_box(wp.transform.location, center, stop.trigger_volume.extent) for wp in waypoints)
+        return stop_affects(waypoints, stop)
 
     def _scan(self, snapshot: Snapshot, ego: ActorState, waypoints: Sequence[Waypoint]) -> TrafficSignInfo | None:
         if not waypoints:

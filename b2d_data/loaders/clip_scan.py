@@ -31,7 +31,7 @@ logger = logging.getLogger(__name__)
 
 ARCHIVE_SUFFIXES = (".tar.gz", ".tgz")
 #: Folders under a corpus root that are never clips.
-NON_CLIP_DIRS = frozenset({"maps", ".b2d_index", "index", "splits"})
+NON_CLIP_DIRS = frozenset({"maps", ".b2d_index", "index", "splits", "failed", "results", "routes", "towns"})
 
 #: Modality → (folder inside the clip, file suffix). ``expert`` files are named frame − 1 (``-0001.npz``).
 MODALITY_FILES: dict[str, tuple[str, str]] = {"anno": ("anno", ".json.gz")}

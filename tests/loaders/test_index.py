@@ -90,3 +90,14 @@ def test_opening_a_1000_clip_corpus_takes_under_a_second(tmp_path: Path) -> None
     assert seconds < 1.0
     # Waypoints come from the index poses, so a frame's targets need no other annotation.
     assert ds.frame_key(199_999) == (ds.clip_names[-1], 199)
+
+
+def test_collection_side_folders_are_not_clips(tmp_path):
+    # b2d-collect keeps failed runs under failed/<clip> (with --keep-failed): they must not enter the corpus.
+    from b2d_data.loaders.clip_scan import discover_clips
+
+    spec = dict(frames=1, dense=False, lidar_points=5, radar=False, expert=False, cameras=("front",))
+    write_synthetic_clip(tmp_path, SyntheticClipSpec(ClipName.parse("Accident_Town03_Route1_Weather0"), **spec))
+    write_synthetic_clip(tmp_path / "failed",
+                         SyntheticClipSpec(ClipName.parse("Accident_Town03_Route2_Weather0"), **spec))  # fmt: skip
+    assert [str(c.name) for c in discover_clips(tmp_path)] == ["Accident_Town03_Route1_Weather0"]

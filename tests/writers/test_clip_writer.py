@@ -254,3 +254,24 @@ def test_invalid_records_are_refused_before_writing(tmp_path: Path, record_facto
         writer.write(record_factory(0))
     assert read_anno(tmp_path / str(CLIP) / "anno/00000.json.gz")["theta"] == 1.25
     assert not any(name.startswith(".") for name in os.listdir(tmp_path))
+
+
+def test_an_unreaped_dead_writer_counts_as_dead():
+    # A child that exited but was not waited for is a zombie: kill(pid, 0) still succeeds, yet no writer runs.
+    import time
+
+    from b2d_data.writers.clip_writer import _pid_alive
+
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    try:
+        for _ in range(100):  # wait until the child has become a zombie
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            if state == "Z":
+                break
+            time.sleep(0.01)
+        assert not _pid_alive(pid)
+        assert _pid_alive(os.getpid())
+    finally:
+        os.waitpid(pid, 0)

@@ -1,0 +1,20 @@
+"""The implemented scenario types, one module per behaviour family; importing this package registers them."""
+
+from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
+from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
+from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
+from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
+from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
+from b2d_data.scenarios.catalog.parking_exit import ParkingExit
+from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
+from b2d_data.scenarios.catalog.vanilla_turns import (
+    VanillaNonSignalizedTurnEncounterStopsign,
+    VanillaSignalizedTurnEncounterRedLight,
+)
+from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
+
+__all__ = [
+    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionRightTurn",
+    "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn",
+    "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
+]  # fmt: skip

@@ -1,0 +1,65 @@
+"""Which CARLA blueprints the scenarios draw their actors from (seeded picks from the shared blueprint library)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from b2d_data.format.rig import EGO_TYPE_ID
+from b2d_data.sim import blueprints
+
+#: The police car of the Accident scenario.
+POLICE_CAR = "vehicle.dodge.charger_police_2020"
+#: The adversary of the red-light runner scenario.
+AMBULANCE = "vehicle.ford.ambulance"
+#: Warning sign near an accident or a parked obstacle.
+WARNING_ACCIDENT = "static.prop.warningaccident"
+#: Light state names (CARLA's VehicleLightState flags) for sirens and hazard blinkers.
+SIREN_LIGHTS = "Special1"
+HAZARD_LIGHTS = "LeftBlinker|RightBlinker"
+#: DynamicObjectCrossing blocker props (XML ``blocker_model``).
+BLOCKER_MODELS = ("static.prop.advertisement", "static.prop.container")
+
+
+def _pick(ids: list[str], rng: np.random.Generator) -> str:
+    if not ids:
+        raise RuntimeError("the blueprint library has no blueprint of the requested kind")
+    return ids[int(rng.integers(len(ids)))]
+
+
+def parked_car_ids() -> list[str]:
+    """Ordinary generation-2 cars (no police, taxi or ego model), as LB2.0's obstacle filter picks."""
+    return [
+        t
+        for t in blueprints.filter_ids("vehicle.*", base_type="car", generation="2", special_type="")
+        if t != EGO_TYPE_ID
+    ]
+
+
+def random_parked_car(rng: np.random.Generator) -> str:
+    """A seeded pick among :func:`parked_car_ids`."""
+    return _pick(parked_car_ids(), rng)
+
+
+def random_bicycle(rng: np.random.Generator) -> str:
+    """A seeded bicycle blueprint."""
+    return _pick(blueprints.filter_ids("vehicle.*", base_type="bicycle"), rng)
+
+
+def emergency_vehicle_ids() -> list[str]:
+    """Vehicles with ``special_type`` emergency (police cars, ambulance, fire truck)."""
+    return blueprints.filter_ids("vehicle.*", special_type="emergency")
+
+
+def random_emergency_vehicle(rng: np.random.Generator) -> str:
+    """A seeded emergency vehicle."""
+    return _pick(emergency_vehicle_ids(), rng)
+
+
+def random_walker(rng: np.random.Generator) -> str:
+    """A seeded adult pedestrian blueprint."""
+    return blueprints.random_walker(rng, adults_only=True).type_id
+
+
+def half_extent(type_id: str) -> tuple[float, float, float]:
+    """The blueprint's bounding-box half extents (m)."""
+    return blueprints.find(type_id).extent

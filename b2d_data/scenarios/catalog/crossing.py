@@ -1,0 +1,130 @@
+"""DynamicObjectCrossing (§2.2 #14): a pedestrian steps out from behind a prop on the sidewalk into the road.
+
+A blocker prop (advertisement or container, turned 90°) stands ``distance`` m ahead on the ``direction``-side
+sidewalk; the pedestrian appears just beyond it facing the road (turned by ``crossing_angle``) when the ego's time
+to arrival at the lane point abreast of it drops below ``2.1 + 0.1 × floor(angle / 5)`` s (or within 6 m), walks at
+2 m/s for twice its distance to that point, and is removed with the blocker. The scenario ends 40 m later.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+from b2d_data.format.transform import Vector3D
+from b2d_data.maps import LaneType, Waypoint
+from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS, half_extent, random_walker
+from b2d_data.scenarios.catalog.road_geometry import find_side_lane, move_along, offset_transform, outermost_lane
+from b2d_data.scenarios.controllers import WalkerController
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import DriveDistance, TimeToArrivalTrigger
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+def _lateral_between(a: Waypoint, b: Waypoint) -> float:
+    """Signed lateral offset (m, + right of ``a``'s heading) of ``b``'s centre from ``a``'s centre."""
+    r = math.radians(a.transform.rotation.yaw)
+    dx = b.transform.location.x - a.transform.location.x
+    dy = b.transform.location.y - a.transform.location.y
+    return -math.sin(r) * dx + math.cos(r) * dy
+
+
+@register
+class DynamicObjectCrossing(Scenario):
+    """An occluded pedestrian crossing in front of the ego."""
+
+    xml_type = "DynamicObjectCrossing"
+    scenario_timeout = None
+    timeout_test = False
+    walker_speed = 2.0
+    min_trigger_distance = 6.0
+    end_distance = 40.0
+    spawn_retries = 6
+    retry_step = 0.4
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.distance = ctx.value("distance", 12.0)
+        self.direction = ctx.text("direction", "right")
+        if self.direction not in ("left", "right"):
+            raise ScenarioSetupError(f"{self.name}: direction must be 'left' or 'right', got {self.direction!r}")
+        self.blocker_model = ctx.text("blocker_model", BLOCKER_MODELS[0])
+        self.crossing_angle = ctx.value("crossing_angle", 0.0)
+        self.sign = 1.0 if self.direction == "right" else -1.0
+        wp = move_along(self.trigger_waypoint, self.distance)
+        if wp is None or wp.is_junction:
+            raise ScenarioSetupError(
+                f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point"
+            )
+        self.lane_waypoint = wp
+        sidewalk = find_side_lane(wp, self.direction, LaneType.SIDEWALK)
+        if sidewalk is not None:
+            self.blocker_lateral = self.sign * abs(_lateral_between(wp, sidewalk))
+        else:
+            outer = outermost_lane(wp, self.direction)
+            self.blocker_lateral = self.sign * (abs(_lateral_between(wp, outer)) + 1.5)
+        self.has_sidewalk = sidewalk is not None
+        blocker_extent = half_extent(self.blocker_model)
+        # props stand turned by 90°: their y extent lies along the lane
+        self.walker_forward = blocker_extent[1] + 0.5 + 0.3
+        self.collision_waypoint = move_along(wp, self.walker_forward) or wp
+        self.blocker: int | None = None
+        self.walker: int | None = None
+        self._walk: WalkerController | None = None
+        trigger_time = 2.1 + 0.1 * math.floor(self.crossing_angle / 5.0)
+        self._tta = TimeToArrivalTrigger(
+            self.collision_waypoint.transform.location, trigger_time, self.min_trigger_distance
+        )
+        self._removed = False
+        self._after = DriveDistance(self.end_distance)
+
+    def build(self) -> None:
+        """The blocker prop on the sidewalk."""
+        transform = offset_transform(self.lane_waypoint, lateral=self.blocker_lateral, yaw=90.0)
+        retries = [
+            offset_transform(self.lane_waypoint, lateral=self.blocker_lateral, forward=f, yaw=90.0) for f in (1.0, -1.0)
+        ]
+        self.blocker = self.spawn(self.blocker_model, transform, retries=retries)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Keep the background away from the crossing."""
+        self.ctx.sim.background.leave_space_in_front(self.distance + 10.0)
+
+    def _spawn_walker(self) -> None:
+        yaw = 270.0 - self.crossing_angle if self.direction == "right" else 90.0 + self.crossing_angle
+        base = self.collision_waypoint
+        candidates = [
+            offset_transform(base, lateral=self.blocker_lateral, forward=k * self.retry_step, z=1.0, yaw=yaw)
+            for k in range(self.spawn_retries)
+        ]
+        self.walker = self.spawn(random_walker(self.ctx.rng), candidates[0], retries=candidates[1:])
+        heading = math.radians(base.transform.rotation.yaw + yaw)
+        to_lane = abs(self.blocker_lateral)
+        self._walk = WalkerController(
+            self.ctx.sim,
+            self.walker,
+            Vector3D(math.cos(heading), math.sin(heading), 0.0),
+            self.walker_speed,
+            2.0 * to_lane,
+        )
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """TTA trigger → walk across → remove → 40 m more."""
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        if self._walk is None:
+            if self._tta.check(ego):
+                self._spawn_walker()
+            return ScenarioStatus.RUNNING
+        if not self._removed:
+            self._walk.run_step(snapshot)
+            if not self._walk.done:
+                return ScenarioStatus.RUNNING
+            self._removed = True
+            for actor_id in (self.walker, self.blocker):
+                if actor_id is not None:
+                    self.destroy(actor_id)
+        return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING

@@ -1,0 +1,190 @@
+"""Actor flows: a stream of vehicles from a source lane point to a sink (scenario_runner's ActorFlow).
+
+With ``constant_velocity`` the vehicles drive at a forced constant speed ignoring lights and signs, braking only for
+a vehicle in their own path (junction turn scenarios); otherwise they are lane-following agents at a target speed
+that brake for vehicles ahead (the opposite traffic of the two-way obstacle scenarios). A new vehicle appears at
+the source once the previous one has driven a gap drawn uniformly from the interval; vehicles are removed within
+``sink_distance`` of the sink.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from b2d_data.format.transform import Location, Rotation, Transform, Vector3D
+from b2d_data.maps import Waypoint
+from b2d_data.scenarios.catalog.road_geometry import lane_walk
+from b2d_data.scenarios.controllers import ConstantVelocityAgent, LaneFollowingAgent, PathTrack
+from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioSetupError
+from b2d_data.sim import blueprints
+from b2d_data.sim.api import ActorSpec, Simulator, SimulatorError, Snapshot, VehicleControl
+
+log = logging.getLogger(__name__)
+
+
+def flow_path(source: Waypoint, sink: Waypoint, max_length: float = 600.0) -> list[Waypoint]:
+    """Lane waypoints (1 m apart, straight through junctions) from ``source`` up to the point nearest ``sink``."""
+    walk = lane_walk(source, max_length)
+    target = sink.transform.location
+    d = [wp.transform.location.distance_2d(target) for wp in walk]
+    k = int(np.argmin(d))
+    if d[k] > 3.0:
+        raise ScenarioSetupError(
+            f"the flow lane from road {source.road_id} lane {source.lane_id} does not reach its sink at "
+            f"({target.x:.1f}, {target.y:.1f}) (closest {d[k]:.1f} m)"
+        )
+    if k < 1:
+        raise ScenarioSetupError("an actor flow needs its sink ahead of its source")
+    return walk[: k + 1]
+
+
+def _spawn_transform(wp: Waypoint) -> Transform:
+    loc = wp.transform.location
+    return Transform(Location(loc.x, loc.y, loc.z + 0.2), Rotation(yaw=wp.transform.rotation.yaw))
+
+
+@dataclass
+class _FlowVehicle:
+    actor_id: int
+    agent: ConstantVelocityAgent | LaneFollowingAgent
+    crashed: bool = False
+    seen: bool = False
+
+
+class ActorFlow:
+    """A flow of cars along ``path`` (lane waypoints); ``constant_velocity`` selects the controller.
+
+    ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``.
+    """
+
+    def __init__(
+        self,
+        sim: Simulator,
+        rng: np.random.Generator,
+        path: list[Waypoint],
+        speed: float,
+        interval: tuple[float, float],
+        sink_distance: float = 2.0,
+        constant_velocity: bool = True,
+        initial_actors: bool = False,
+    ) -> None:
+        if len(path) < 2:
+            raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
+        self.sim = sim
+        self.rng = rng
+        self.waypoints = path
+        self.track = PathTrack.from_waypoints(path)
+        self.speed = float(speed)
+        self.interval = (float(min(interval)), float(max(interval)))
+        self.sink_distance = sink_distance
+        self.constant_velocity = constant_velocity
+        self.vehicles: list[_FlowVehicle] = []
+        self._cars = blueprints.background_car_ids()
+        self._gap = self._draw_gap()
+        self._last_spawned: int | None = None
+        self._initial = initial_actors
+        self.active = False
+
+    @property
+    def actor_ids(self) -> list[int]:
+        """Ids of the live flow vehicles."""
+        return [v.actor_id for v in self.vehicles]
+
+    def _draw_gap(self) -> float:
+        return float(self.rng.uniform(*self.interval))
+
+    def _spec(self) -> ActorSpec:
+        return blueprints.random_background_car(self.rng, role_name=SCENARIO_ROLE, choices=self._cars)
+
+    def _spawn_at(self, index: int) -> int | None:
+        wp = self.waypoints[index]
+        actor_id = self.sim.try_spawn_actor(self._spec(), _spawn_transform(wp))
+        if actor_id is None:
+            return None
+        rest = self.waypoints[index:]
+        if self.constant_velocity:
+            # Unlike LB2.0's flows (constant velocity through anything until the first crash) these brake for a
+            # vehicle in their lane, as scenario_runner's earlier BasicAgent flows did: a merged ego is not rear-ended.
+            agent: ConstantVelocityAgent | LaneFollowingAgent = ConstantVelocityAgent(
+                self.sim,
+                actor_id,
+                PathTrack.from_waypoints(rest),
+                self.speed,
+                detect_vehicles=True,
+                base_threshold=5.0,
+                speed_ratio=0.5,
+                max_brake=1.0,
+                predict=1.0,
+                crossing_stop_gap=6.0,
+            )
+            # a flow car enters at its cruising speed
+            yaw = math.radians(wp.transform.rotation.yaw)
+            self.sim.set_target_velocity(
+                actor_id, Vector3D(math.cos(yaw) * self.speed, math.sin(yaw) * self.speed, 0.0)
+            )
+        else:
+            agent = LaneFollowingAgent(self.sim, actor_id, rest, self.speed)
+        self.vehicles.append(_FlowVehicle(actor_id, agent))
+        return actor_id
+
+    def start(self) -> None:
+        """Begin spawning (and pre-populate the path if asked)."""
+        self.active = True
+        if not self._initial:
+            return
+        s = float(self.track.length) - self.sink_distance - 5.0
+        # from the sink backwards so that the first car spawned is the one furthest along
+        while s > self._gap:
+            index = int(np.clip(np.searchsorted(self.track.s, s), 0, len(self.waypoints) - 1))
+            self._spawn_at(index)
+            s -= self._draw_gap()
+
+    def update(self, snapshot: Snapshot) -> None:
+        """Spawn at the source when the gap is free, drive every vehicle, remove those at the sink."""
+        crashed = {c.actor_id for c in snapshot.collisions}
+        for veh in list(self.vehicles):
+            actor = snapshot.actors.get(veh.actor_id)
+            if actor is None:
+                if veh.seen:  # removed by somebody else; unseen ones were spawned this tick
+                    self.vehicles.remove(veh)
+                continue
+            veh.seen = True
+            if veh.actor_id in crashed and not veh.crashed:
+                veh.crashed = True  # LB2.0 flows keep their forced speed only until their first collision
+                log.debug("flow vehicle %d collided, it stops", veh.actor_id)
+            if veh.crashed:
+                self.sim.apply_control(veh.actor_id, VehicleControl(brake=1.0))
+                continue
+            veh.agent.run_step(snapshot)
+            if veh.agent.done:
+                self._destroy(veh)
+        if not self.active:
+            return
+        if self._last_spawned is not None:
+            last = snapshot.actors.get(self._last_spawned)
+            source = self.waypoints[0].transform.location
+            if last is None and any(v.actor_id == self._last_spawned and not v.seen for v in self.vehicles):
+                return  # spawned this tick
+            if last is not None and last.location.distance_2d(source) < self._gap:
+                return
+        if self._spawn_at(0) is not None:
+            self._last_spawned = self.vehicles[-1].actor_id
+            self._gap = self._draw_gap()
+
+    def _destroy(self, veh: _FlowVehicle) -> None:
+        if veh in self.vehicles:
+            self.vehicles.remove(veh)
+        try:
+            self.sim.destroy_actor(veh.actor_id)
+        except SimulatorError:
+            log.debug("flow vehicle %d already gone", veh.actor_id)
+
+    def stop(self) -> None:
+        """Remove every flow vehicle and stop spawning."""
+        self.active = False
+        for veh in list(self.vehicles):
+            self._destroy(veh)

@@ -1,0 +1,114 @@
+"""HazardAtSideLane (§2.2 #11): two slow bicycles ride at the right edge of the ego's lane on a multi-lane road."""
+
+from __future__ import annotations
+
+import logging
+
+from b2d_data.format.transform import Transform
+from b2d_data.scenarios.catalog.actor_choices import random_bicycle
+from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform, same_direction_driving_neighbour
+from b2d_data.scenarios.controllers import LaneFollowingAgent, follow_lane, park
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import DistanceTrigger, DriveDistance, Timer, is_in_front
+from b2d_data.sim.api import ScenarioHint, Snapshot
+
+log = logging.getLogger(__name__)
+
+
+@register
+class HazardAtSideLane(Scenario):
+    """Bicycles at ``distance`` and ``distance + 9`` m ride at ``bicycle_speed`` for ``bicycle_drive_distance`` m.
+
+    At the trigger the background leaves ``distance + 29`` m free and keeps 30 m extra space; 5 s after the ego
+    came within 50 m of the first bicycle the background speed is capped at ``speed``; the scenario ends once the
+    ego is ahead of the last bicycle and drove 50 m more, or after 240 s.
+    """
+
+    xml_type = "HazardAtSideLane"
+    bicycle_gap = 9.0
+    offset_fraction = 0.55  # of the half lane width, to the right
+    trigger_distance = 50.0
+    wait_duration = 5.0
+    end_distance = 50.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.distance = ctx.value("distance", 100.0)
+        self.max_speed = ctx.value("speed", 60.0)
+        self.bicycle_speed = ctx.value("bicycle_speed", 10.0)
+        self.drive_distance = ctx.value("bicycle_drive_distance", 50.0)
+        first = move_along(self.trigger_waypoint, self.distance)
+        second = move_along(first, self.bicycle_gap) if first is not None else None
+        if first is None or second is None or first.is_junction or second.is_junction:
+            raise ScenarioSetupError(f"{self.name}: no junction-free lane {self.distance + 9:.0f} m after the trigger")
+        if same_direction_driving_neighbour(first, "left") is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'multi_lane' missing: no same-direction driving lane left of road "
+                f"{first.road_id} lane {first.lane_id} to pass the bicycles"
+            )
+        self._waypoints = (first, second)
+        self.bicycles: list[int] = []
+        self._agents: list[LaneFollowingAgent] = []
+        self._approach = DistanceTrigger(self.trigger_distance)
+        self._wait = Timer(self.wait_duration)
+        self._capped = False
+        self._passed = False
+        self._after = DriveDistance(self.end_distance)
+
+    def _lateral(self, width: float) -> float:
+        return self.offset_fraction * width / 2.0
+
+    def build(self) -> None:
+        """Two bicycles standing at the right edge of the lane."""
+        for wp in self._waypoints:
+            lateral = self._lateral(wp.lane_width)
+            transform: Transform = offset_transform(wp, lateral=lateral, z=0.2)
+            retries = [offset_transform(wp, lateral=lateral, forward=f, z=0.2) for f in (1.0, 2.0)]
+            actor_id = self.spawn(random_bicycle(self.ctx.rng), transform, retries=retries)
+            park(self.ctx.sim, actor_id)
+            self.bicycles.append(actor_id)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the road ahead and start both bicycles."""
+        bg = self.ctx.sim.background
+        bg.leave_space_in_front(self.distance + 29.0)
+        bg.change_road_behavior(extra_space=30.0)
+        for actor_id, wp in zip(self.bicycles, self._waypoints):
+            path = follow_lane(wp, self.drive_distance + 30.0)
+            self._agents.append(LaneFollowingAgent(
+                self.ctx.sim, actor_id, path, self.bicycle_speed / 3.6, lateral_offset=self._lateral(wp.lane_width),
+                max_distance=self.drive_distance, accel=1.0, ignore=self.bicycles,
+            ))  # fmt: skip
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Ride, cap the background near the bicycles, end 50 m after overtaking them."""
+        for agent in self._agents:
+            agent.run_step(snapshot)
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        first = snapshot.actors.get(self.bicycles[0])
+        last = snapshot.actors.get(self.bicycles[-1])
+        target = first.location if first is not None else self._waypoints[0].transform.location
+        if not self._capped and self._approach.check(ego, target) and self._wait.check(snapshot):
+            self._capped = True
+            self.ctx.sim.background.set_max_speed(self.max_speed / 3.6)
+        if not self._passed:
+            self._passed = last is None or is_in_front(ego, last)
+            if not self._passed:
+                return ScenarioStatus.RUNNING
+        return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Lift the speed cap and the extra space."""
+        bg = self.ctx.sim.background
+        if self._capped:
+            bg.set_max_speed(None)
+        if self._agents:
+            bg.change_road_behavior(extra_space=0.0)
+
+    def hint(self) -> ScenarioHint | None:
+        """First and last bicycle, on the right."""
+        if not self.bicycles:
+            return None
+        return ScenarioHint(self.xml_type, self.bicycles[0], self.bicycles[-1], direction="right")

@@ -1,0 +1,189 @@
+"""Turns through crossing traffic (§2.2 #23-#28): SignalizedJunctionLeftTurn, NonSignalizedJunctionRightTurn.
+
+A constant-speed :class:`~b2d_data.scenarios.catalog.flows.ActorFlow` crosses the junction straight; the ego
+must find a gap. Left turn: the flow comes from the opposite entry (a random lane of it), its source
+``4 × flow_speed`` m before the junction and its sink ``2.5 × flow_speed`` m after; on signalised junctions the
+ego's light is red for 5 s while the flow's is green, then both are green. Right turn: the flow comes from the
+left entry's rightmost lane, ``5 × flow_speed`` m before to ``3 × flow_speed`` m after, pre-populated. Both end
+10 m after the ego left the junction, or after 240 s.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import ClassVar
+
+from b2d_data.maps import Waypoint
+from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.junctions import (
+    JunctionScenario,
+    LightSchedule,
+    junction_flow_path,
+    light_states,
+    lights_of_lane,
+    rightmost_driving,
+)
+from b2d_data.scenarios.catalog.road_geometry import connection, entries_from, same_direction_lanes
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+class JunctionFlowTurn(JunctionScenario):
+    """Common part: the flow, the end condition and the background preparation."""
+
+    flow_direction: ClassVar[str] = "opposite"
+    source_factor: ClassVar[float] = 4.0
+    sink_factor: ClassVar[float] = 2.5
+    initial_actors: ClassVar[bool] = False
+    signalized: ClassVar[bool] = True
+    end_distance: ClassVar[float] = 10.0
+    default_interval: ClassVar[tuple[float, float]] = (25.0, 50.0)
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.flow_speed = ctx.value("flow_speed", 20.0)
+        self.interval = ctx.interval("source_dist_interval", self.default_interval)
+        entries = entries_from(self.lanes, self.ego_entry, self.flow_direction)
+        if not entries:
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: junction {self.junction.id} has no entry from the {self.flow_direction}"
+            )
+        self.sink_distance = self.sink_factor * self.flow_speed
+        options = []
+        for entry in self.entry_choices(entries):
+            straight = connection(self.lanes, entry, "straight")
+            if straight is None:
+                continue
+            try:
+                path = junction_flow_path(straight, self.source_factor * self.flow_speed, self.sink_distance)
+            except ScenarioSetupError:
+                continue
+            options.append((entry, path))
+        if not options:
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: no {self.flow_direction} entry of junction {self.junction.id} goes "
+                f"straight on for {self.sink_distance:.0f} m"
+            )
+        self.source_entry, self.path = self.pick(options)
+        self.source, self.sink = self.path[0], self.path[-1]
+        self.flow: ActorFlow | None = None
+        self.lights: LightSchedule | None = None
+        self._left = WaitEndIntersection(ctx.map, self.junction.id)
+        self._after = DriveDistance(self.end_distance)
+
+    def entry_choices(self, entries: list[Waypoint]) -> list[Waypoint]:
+        """The entry lanes the flow may use."""
+        return entries
+
+    def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
+        """Which of the usable entries (with their flow paths) the flow takes."""
+        return options[0]
+
+    def prepare_background(self) -> None:
+        """Background-traffic hooks at the trigger."""
+
+    def light_phases(self, snapshot: Snapshot) -> LightSchedule | None:
+        """Forced light states (signalised version only)."""
+        return None
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Prepare the junction, start the flow and the light schedule."""
+        self.prepare_background()
+        self.flow = ActorFlow(
+            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=self.initial_actors
+        )
+        self.flow.start()
+        self.lights = self.light_phases(snapshot)
+        if self.lights is not None:
+            self.lights.update(snapshot)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Drive the flow; SUCCESS 10 m after the ego left the junction."""
+        if self.flow is not None:
+            self.flow.update(snapshot)
+        if self.lights is not None:
+            self.lights.update(snapshot)
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        if self._left.check(ego) and self._after.check(ego):
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Stop the flow and release the lights."""
+        if self.flow is not None:
+            self.flow.stop()
+        if self.lights is not None:
+            self.lights.release()
+
+
+@register
+class SignalizedJunctionLeftTurn(JunctionFlowTurn):
+    """Left turn across an oncoming flow at a signalised junction (§2.2 #23)."""
+
+    xml_type = "SignalizedJunctionLeftTurn"
+    required_turn = ("left",)
+    flow_direction = "opposite"
+    source_factor = 4.0
+    sink_factor = 2.5
+    green_light_delay = 5.0
+
+    def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
+        """A random lane among those facing the ego."""
+        return options[int(self.ctx.rng.integers(len(options)))]
+
+    def build(self) -> None:
+        """Check that the junction is signalised."""
+        self.require_lights(self.ctx.sim.snapshot())
+
+    def prepare_background(self) -> None:
+        """Clear the junction, remove the flow's lanes, pause the opposite traffic."""
+        bg = self.ctx.sim.background
+        bg.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.source),
+            remove_exits=same_direction_lanes(self.sink), stop_entries=False,
+            extend_road_exit=self.sink_distance + 20.0,
+        )  # fmt: skip
+        bg.change_opposite_behavior(active=False)
+
+    def light_phases(self, snapshot: Snapshot) -> LightSchedule | None:
+        """Ego red and flow green for 5 s, then both green; others red."""
+        lights = self.require_lights(snapshot)
+        ego_lights = lights_of_lane(lights, self.ego_entry)
+        flow_lights = lights_of_lane(lights, self.source_entry)
+        first = light_states(lights, flow_lights)
+        second = light_states(lights, [*ego_lights, *flow_lights])
+        return LightSchedule(self.ctx.sim, [(first, self.green_light_delay), (second, None)])
+
+    def on_end(self) -> None:
+        """Also restore the opposite traffic."""
+        super().on_end()
+        if self.flow is not None:
+            self.ctx.sim.background.change_opposite_behavior(active=True)
+
+
+@register
+class NonSignalizedJunctionRightTurn(JunctionFlowTurn):
+    """Right turn into a flow coming from the left at an unsignalised junction (§2.2 #28)."""
+
+    xml_type = "NonSignalizedJunctionRightTurn"
+    required_turn = ("right",)
+    flow_direction = "left"
+    source_factor = 5.0
+    sink_factor = 3.0
+    initial_actors = True
+
+    def entry_choices(self, entries: list[Waypoint]) -> list[Waypoint]:
+        """The rightmost driving lane of the left entry."""
+        return [rightmost_driving(entries[0])]
+
+    def prepare_background(self) -> None:
+        """Clear the junction, remove the flow's entry lanes, stop the other entries."""
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.source),
+            remove_exits=[], stop_entries=True, extend_road_exit=self.sink_distance + 20.0,
+        )  # fmt: skip

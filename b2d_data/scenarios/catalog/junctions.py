@@ -1,0 +1,209 @@
+"""What the junction scenarios share: locating the route's junction and scheduling forced traffic-light states."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from typing import ClassVar
+
+from b2d_data.maps import Junction, LaneType, Waypoint
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    junction_lanes,
+    junction_lights,
+    lane_walk,
+    move_along,
+    same_lane,
+    yaw_diff,
+)
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError
+from b2d_data.sim.api import Simulator, Snapshot, TrafficLightInfo, TrafficLightState
+
+log = logging.getLogger(__name__)
+
+#: How far after the trigger point (along the route) a junction scenario looks for its junction (m).
+JUNCTION_SEARCH = 100.0
+
+
+class JunctionScenario(Scenario):
+    """A scenario at the first junction the route enters after its trigger point.
+
+    Sets ``junction``, ``ego_entry`` (route waypoint just before the junction), ``ego_exit`` (just after it, None if
+    the route ends inside), ``ego_turn`` ('left'/'right'/'straight'/'uturn') and ``lanes`` (every connection).
+    """
+
+    required_turn: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        route = ctx.route
+        s = route.cumulative_length
+        entry = None
+        for j in range(self.trigger_index, len(route.waypoints)):
+            if s[j] - s[self.trigger_index] > JUNCTION_SEARCH:
+                break
+            if route.waypoints[j].is_junction:
+                entry = j
+                break
+        if entry is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: the route enters no junction within {JUNCTION_SEARCH:.0f} m of the "
+                "trigger point"
+            )
+        inside = route.waypoints[entry]
+        self.junction: Junction = ctx.map.junctions[inside.junction_id]
+        self.entry_index = entry
+        self.ego_entry: Waypoint = (
+            route.waypoints[entry - 1] if entry > 0 else (move_along(inside, 3.0, forward=False) or inside)
+        )
+        exit_index = next((k for k in range(entry, len(route.waypoints)) if not route.waypoints[k].is_junction), None)
+        self.exit_index = exit_index
+        self.ego_exit: Waypoint | None = route.waypoints[exit_index] if exit_index is not None else None
+        self.lanes: list[JunctionLane] = junction_lanes(self.junction)
+        if self.ego_exit is None:
+            self.ego_turn = "straight"
+        else:
+            angle = yaw_diff(self.ego_entry.transform.rotation.yaw, self.ego_exit.transform.rotation.yaw)
+            lane = JunctionLane(self.junction.id, inside, inside, self.ego_entry, self.ego_exit, angle)
+            self.ego_turn = lane.turn
+        if self.required_turn and self.ego_turn not in self.required_turn:
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: the route must turn {' or '.join(self.required_turn)} at junction "
+                f"{self.junction.id}, it goes {self.ego_turn}"
+            )
+
+    def junction_lights(self, snapshot: Snapshot) -> list[TrafficLightInfo]:
+        """The traffic lights of the scenario's junction."""
+        return junction_lights(snapshot.traffic_lights, self.ctx.map, self.junction)
+
+    def require_lights(self, snapshot: Snapshot) -> list[TrafficLightInfo]:
+        """The junction's lights; a junction without any raises (the signalised layout is missing)."""
+        lights = self.junction_lights(snapshot)
+        if not lights:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'signalized junction' missing: junction {self.junction.id} has no traffic lights"
+            )
+        return lights
+
+
+def lights_of_lane(lights: Sequence[TrafficLightInfo], wp: Waypoint) -> list[TrafficLightInfo]:
+    """Every light with a stop waypoint on ``wp``'s lane; if none, the light whose stop line is nearest."""
+    exact = [info for info in lights if any(same_lane(stop, wp) for stop in info.stop_waypoints)]
+    if exact:
+        return exact
+    best, best_d = None, float("inf")
+    for info in lights:
+        for stop in info.stop_waypoints:
+            d = stop.transform.location.distance_2d(wp.transform.location)
+            if d < best_d:
+                best, best_d = info, d
+    return [best] if best is not None else []
+
+
+def light_states(
+    lights: Sequence[TrafficLightInfo],
+    green: Sequence[TrafficLightInfo],
+    default: TrafficLightState = TrafficLightState.RED,
+) -> dict[int, TrafficLightState]:
+    """A state per light: GREEN for those in ``green``, ``default`` for the others."""
+    green_ids = {info.id for info in green}
+    return {info.id: (TrafficLightState.GREEN if info.id in green_ids else default) for info in lights}
+
+
+class LightSchedule:
+    """scenario_runner's TrafficLightFreezer sequence: phases of forced states, each for a duration or until the end.
+
+    A phase with duration ``None`` lasts until :meth:`release`; once the last timed phase is over the lights are
+    released to their normal cycle.
+    """
+
+    def __init__(self, sim: Simulator, phases: Sequence[tuple[Mapping[int, TrafficLightState], float | None]]) -> None:
+        self.sim = sim
+        self.phases = list(phases)
+        self._index = -1
+        self._phase_start = 0.0
+        self._touched: set[int] = set()
+        self._released = False
+        self._last: Snapshot | None = None
+
+    def _apply(self, index: int, snapshot: Snapshot) -> None:
+        self._index = index
+        self._phase_start = snapshot.timestamp
+        for light_id, state in sorted(self.phases[index][0].items()):
+            self.sim.set_traffic_light_state(light_id, state, freeze=True)
+            self._touched.add(light_id)
+
+    def update(self, snapshot: Snapshot) -> None:
+        """Apply the first phase, then move on when a phase's duration is over."""
+        self._last = snapshot
+        if self._released or not self.phases:
+            return
+        if self._index < 0:
+            self._apply(0, snapshot)
+            return
+        duration = self.phases[self._index][1]
+        if duration is not None and snapshot.timestamp - self._phase_start >= duration - 1e-9:
+            if self._index + 1 < len(self.phases):
+                self._apply(self._index + 1, snapshot)
+            else:
+                self.release(snapshot)
+
+    def release(self, snapshot: Snapshot | None = None) -> None:
+        """Unfreeze every light this schedule touched (each keeps its state until its cycle next changes)."""
+        if self._released:
+            return
+        self._released = True
+        snapshot = snapshot if snapshot is not None else self._last
+        current = snapshot.traffic_lights if snapshot is not None else {}
+        for light_id in sorted(self._touched):
+            info = current.get(light_id)
+            state = info.state if info is not None else TrafficLightState.RED
+            self.sim.set_traffic_light_state(light_id, state, freeze=False)
+
+
+def rightmost_driving(wp: Waypoint) -> Waypoint:
+    """The rightmost same-direction driving lane next to ``wp``."""
+    current = wp
+    while True:
+        other = current.get_right_lane()
+        if other is None or not other.lane_type & LaneType.DRIVING or other.lane_id * current.lane_id <= 0:
+            return current
+        current = other
+
+
+def junction_flow_path(conn: JunctionLane, back: float, ahead: float, back_step: float = 5.0) -> list[Waypoint]:
+    """Lane waypoints 1 m apart of a flow through ``conn``: from ``back`` m before its entry (stopping at a previous
+    junction, in ``back_step`` steps like ActorFlow's source search) to ``ahead`` m after its exit."""
+    source = walk_back_to_source(conn.entry, back, back_step)
+    approach: list[Waypoint] = [conn.entry]
+    current = conn.entry
+    while current.transform.location.distance_2d(source.transform.location) > 0.75 and len(approach) < back + 10:
+        options = current.previous(1.0)
+        if not options or options[0].is_junction:
+            break
+        current = min(options, key=lambda o: o.transform.location.distance_2d(source.transform.location))
+        approach.append(current)
+    inside: list[Waypoint] = [conn.start]
+    while len(inside) < 300:
+        options = [o for o in inside[-1].next(1.0) if o.is_junction and o.road_id == conn.start.road_id]
+        if not options:
+            break
+        inside.append(options[0])
+    after = lane_walk(conn.exit, ahead)
+    if any(wp.is_junction for wp in after[1:]):
+        raise ScenarioSetupError(f"the flow's exit road meets another junction within {ahead:.0f} m")
+    return list(reversed(approach)) + inside + after
+
+
+def walk_back_to_source(entry: Waypoint, distance: float, step: float = 5.0) -> Waypoint:
+    """The source point ``distance`` m before a junction entry, stopping before a previous junction (ActorFlow's
+    source search, 5 m steps)."""
+    source = entry
+    walked = 0.0
+    while walked < distance:
+        options = source.previous(step)
+        if not options or options[0].is_junction:
+            break
+        source = options[0]
+        walked += step
+    return source

@@ -1,0 +1,142 @@
+"""OppositeVehicleRunningRedLight (§2.2 #37): an emergency vehicle crosses the junction against its red light.
+
+The adversary waits 30 m before the junction on the ``direction`` entry (left, right or opposite of the ego's);
+when the ego's time to arrival at the conflict point drops below 2.2 s (or it is within 12 m) the adversary
+crosses straight at 60 km/h with a constant-velocity agent ignoring everything, for the time it needs to reach
+10 m past its exit, and is removed. The lights are frozen: the ego's green, every other one red. The scenario
+ends when the ego has left the junction.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from b2d_data.format.transform import Location
+from b2d_data.scenarios.catalog.actor_choices import AMBULANCE, SIREN_LIGHTS
+from b2d_data.scenarios.catalog.junctions import (
+    JunctionScenario,
+    LightSchedule,
+    junction_flow_path,
+    light_states,
+    lights_of_lane,
+)
+from b2d_data.scenarios.catalog.road_geometry import connection, entries_from, line_intersection, offset_transform
+from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import Timer, TimeToArrivalTrigger, WaitEndIntersection
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+@register
+class OppositeVehicleRunningRedLight(JunctionScenario):
+    """An ambulance with sirens runs a red light across the ego's path."""
+
+    xml_type = "OppositeVehicleRunningRedLight"
+    scenario_timeout = None
+    timeout_test = False
+    source_distance = 30.0
+    sink_distance = 10.0
+    adversary_speed = 60.0 / 3.6
+    sync_time = 2.2
+    min_trigger_distance = 12.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.direction = ctx.text("direction", "right")
+        entries = entries_from(self.lanes, self.ego_entry, self.direction)
+        if not entries:
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: junction {self.junction.id} has no entry from the {self.direction}"
+            )
+        entry = entries[0]
+        straight = connection(self.lanes, entry, "straight")
+        if straight is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: the {self.direction} entry of junction {self.junction.id} does not "
+                "continue straight"
+            )
+        try:
+            self.path = junction_flow_path(straight, self.source_distance, self.sink_distance, back_step=1.0)
+        except ScenarioSetupError as exc:
+            raise ScenarioSetupError(f"{self.name}: layout missing: {exc}") from None
+        self.spawn_waypoint, self.sink_waypoint = self.path[0], self.path[-1]
+        self.conflict = self._conflict_point(entry)
+        self.adversary: int | None = None
+        self._agent: ConstantVelocityAgent | None = None
+        self._tta = TimeToArrivalTrigger(self.conflict, self.sync_time, self.min_trigger_distance)
+        crossing = self.spawn_waypoint.transform.location.distance(self.sink_waypoint.transform.location)
+        self._crossing = Timer(crossing / self.adversary_speed)
+        self._left = WaitEndIntersection(ctx.map, self.junction.id)
+        self.lights: LightSchedule | None = None
+        self._crossed = False
+
+    def _conflict_point(self, entry) -> Location:
+        """Where the ego's route inside the junction meets the adversary's path (else the entry lines' crossing)."""
+        route = self.ctx.route
+        stop = self.exit_index if self.exit_index is not None else len(route.waypoints)
+        ego_xy = route.locations[self.entry_index : stop, :2]
+        adv = np.array([[wp.transform.location.x, wp.transform.location.y] for wp in self.path])
+        if len(ego_xy):
+            d = np.hypot(ego_xy[:, None, 0] - adv[None, :, 0], ego_xy[:, None, 1] - adv[None, :, 1])
+            i, k = np.unravel_index(int(np.argmin(d)), d.shape)
+            if d[i, k] < 2.0:
+                return route.location(self.entry_index + int(i))
+        crossing = line_intersection(self.ego_entry, entry)
+        if crossing is None:
+            raise ScenarioSetupError(
+                f"{self.name}: the adversary's path from the {self.direction} does not cross the ego's route"
+            )
+        return crossing
+
+    def build(self) -> None:
+        """Check that the junction is signalised."""
+        self.require_lights(self.ctx.sim.snapshot())
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Prepare the junction, place the adversary, freeze the lights (ego green, others red)."""
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=[self.spawn_waypoint],
+            remove_exits=[self.sink_waypoint], stop_entries=False, extend_road_exit=0.0,
+        )  # fmt: skip
+        transforms = [offset_transform(self.spawn_waypoint, forward=f, z=0.2) for f in (0.0, -2.0, -4.0, 2.0)]
+        self.adversary = self.spawn(AMBULANCE, transforms[0], retries=transforms[1:])
+        self.ctx.sim.set_light_state(self.adversary, SIREN_LIGHTS)
+        park(self.ctx.sim, self.adversary)
+        lights = self.require_lights(snapshot)
+        states = light_states(lights, lights_of_lane(lights, self.ego_entry))
+        self.lights = LightSchedule(self.ctx.sim, [(states, None)])
+        self.lights.update(snapshot)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Wait for the ego's time to arrival, let the adversary cross, then wait for the ego to leave the junction."""
+        if self.lights is not None:
+            self.lights.update(snapshot)
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        left = self._left.check(ego)
+        if self.adversary is not None and self._agent is None and self._tta.check(ego):
+            log.debug(
+                "%s: adversary starts (ego %.1f m from the conflict point)",
+                self.name,
+                math.hypot(ego.location.x - self.conflict.x, ego.location.y - self.conflict.y),
+            )
+            track = PathTrack.from_waypoints(self.path)
+            self._agent = ConstantVelocityAgent(self.ctx.sim, self.adversary, track, self.adversary_speed)
+        if self._agent is not None and not self._crossed:
+            self._agent.run_step(snapshot)
+            if self._crossing.check(snapshot) or self._agent.done:
+                self._crossed = True
+                if self.adversary is not None:
+                    self.destroy(self.adversary)
+        return ScenarioStatus.SUCCESS if self._crossed and left else ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Release the lights."""
+        if self.lights is not None:
+            self.lights.release()

@@ -1,0 +1,101 @@
+"""Bench2Drive's plain junction turns (§2.2 #39–#42): no actors, only forced lights or the map's stop sign.
+
+VanillaSignalizedTurnEncounterRedLight: every light of the junction red for 5 s, then the ego's light green and
+the others red until the end. VanillaNonSignalizedTurnEncounterStopsign: nothing is forced; the route's stop sign
+is judged by the route criteria. Both end 10 m after the ego left the junction; they carry a ScenarioTimeoutTest
+that never fires (there is no ScenarioTimeout behaviour).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from b2d_data.scenarios.catalog.junctions import JunctionScenario, LightSchedule, light_states, lights_of_lane
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+class VanillaJunctionTurn(JunctionScenario):
+    """Ends 10 m after the ego has left the junction."""
+
+    scenario_timeout = None
+    timeout_test = True
+    end_distance = 10.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self._left = WaitEndIntersection(ctx.map, self.junction.id)
+        self._after = DriveDistance(self.end_distance)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """SUCCESS 10 m after the junction."""
+        ego = self.ctx.ego(snapshot)
+        if ego is not None and self._left.check(ego) and self._after.check(ego):
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+
+@register
+class VanillaSignalizedTurnEncounterRedLight(VanillaJunctionTurn):
+    """All lights red for 5 s, then the ego's green: the ego must wait at the stop line, then go (§2.2 #42)."""
+
+    xml_type = "VanillaSignalizedTurnEncounterRedLight"
+    green_light_delay = 5.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.lights: LightSchedule | None = None
+
+    def build(self) -> None:
+        """Check that the junction is signalised."""
+        self.require_lights(self.ctx.sim.snapshot())
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Start the light schedule."""
+        lights = self.require_lights(snapshot)
+        all_red = light_states(lights, [])
+        ego_green = light_states(lights, lights_of_lane(lights, self.ego_entry))
+        self.lights = LightSchedule(self.ctx.sim, [(all_red, self.green_light_delay), (ego_green, None)])
+        self.lights.update(snapshot)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Advance the lights; SUCCESS 10 m after the junction."""
+        if self.lights is not None:
+            self.lights.update(snapshot)
+        return super().update(snapshot)
+
+    def on_end(self) -> None:
+        """Release the lights."""
+        if self.lights is not None:
+            self.lights.release()
+
+
+@register
+class VanillaNonSignalizedTurnEncounterStopsign(VanillaJunctionTurn):
+    """A turn at an unsignalised junction with a stop sign on the ego's approach (§2.2 #40)."""
+
+    xml_type = "VanillaNonSignalizedTurnEncounterStopsign"
+
+    def build(self) -> None:
+        """Check that a stop sign governs the ego's approach (a lane of the route's last 30 m before the junction)."""
+        route = self.ctx.route
+        s = route.cumulative_length
+        approach = {
+            (wp.road_id, wp.lane_id)
+            for k, wp in enumerate(route.waypoints[: self.entry_index])
+            if s[self.entry_index] - s[k] <= 30.0
+        }
+        # CARLA's towns attach stop signs to the junction's connecting lanes
+        stop = self.exit_index if self.exit_index is not None else len(route.waypoints)
+        approach |= {(wp.road_id, wp.lane_id) for wp in route.waypoints[self.entry_index : stop]}
+        for sign in self.ctx.map.stop_signs():
+            if any((lane.road_id, lane.lane_id) in approach for lane in sign.lanes):
+                return
+        entry = self.ego_entry
+        raise ScenarioSetupError(
+            f"{self.name}: layout 'stop sign' missing: no stop sign governs road {entry.road_id} lane "
+            f"{entry.lane_id} before junction {self.junction.id}"
+        )

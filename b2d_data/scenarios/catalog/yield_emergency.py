@@ -1,0 +1,138 @@
+"""YieldToEmergencyVehicle (§2.2 #17): an emergency vehicle with sirens approaches from behind in the ego's lane.
+
+At the trigger the ego's lane is removed from background traffic and the vehicle appears ``distance`` m behind the
+trigger point; a constant-velocity agent drives it at the ego's speed + 25 km/h (LB2.0's ``speed_increment`` is in
+km/h: ConstantVelocityAgent speeds are km/h), braking for vehicles in its path. The scenario ends 10 s after the
+vehicle came within 50 m of the ego, or once it is in front of the ego and drove 50 m more;
+YieldToEmergencyVehicleTest then fails if the vehicle is still behind the ego.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from b2d_data.scenarios.catalog.actor_choices import SIREN_LIGHTS, random_emergency_vehicle
+from b2d_data.scenarios.catalog.road_geometry import (
+    move_along,
+    offset_transform,
+    same_direction_driving_neighbour,
+)
+from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, follow_lane
+from b2d_data.scenarios.criteria.base import Criterion
+from b2d_data.scenarios.framework import (
+    Scenario,
+    ScenarioContext,
+    ScenarioSetupError,
+    ScenarioStatus,
+    YieldToEmergencyVehicleTest,
+    register,
+)
+from b2d_data.scenarios.triggers import DistanceTrigger, DriveDistance, Timer, is_in_front
+from b2d_data.sim.api import ScenarioHint, Snapshot
+
+log = logging.getLogger(__name__)
+
+
+@register
+class YieldToEmergencyVehicle(Scenario):
+    """The ego must leave its lane to let an emergency vehicle pass."""
+
+    xml_type = "YieldToEmergencyVehicle"
+    scenario_timeout = None
+    timeout_test = False
+    speed_increment = 25.0 / 3.6
+    trigger_distance = 50.0
+    idle_time = 10.0
+    end_distance = 50.0
+    lane_refresh_ticks = 10
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.distance = ctx.value("distance", 140.0)
+        start = move_along(self.trigger_waypoint, self.distance, forward=False)
+        if start is None:
+            raise ScenarioSetupError(
+                f"{self.name}: the ego's lane does not extend {self.distance:.0f} m behind the trigger"
+            )
+        wp = self.trigger_waypoint
+        if (
+            same_direction_driving_neighbour(wp, "left") is None
+            and same_direction_driving_neighbour(wp, "right") is None
+        ):
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'multi_lane' missing: road {wp.road_id} lane {wp.lane_id} has no same-direction "
+                "lane to yield into"
+            )
+        self.start_waypoint = start
+        self.ev: int | None = None
+        self._agent: ConstantVelocityAgent | None = None
+        self._close = DistanceTrigger(self.trigger_distance)
+        self._idle = Timer(self.idle_time)
+        self._passed = False
+        self._ev_after = DriveDistance(self.end_distance)
+        self._test: YieldToEmergencyVehicleTest | None = None
+        self._seen = False
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Remove the ego's lane from the background, place the emergency vehicle behind and start it."""
+        self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
+        transforms = [offset_transform(self.start_waypoint, forward=f, z=0.2) for f in (0.0, -3.0, 3.0, -6.0)]
+        self.ev = self.spawn(random_emergency_vehicle(self.ctx.rng), transforms[0], retries=transforms[1:])
+        self.ctx.sim.set_light_state(self.ev, SIREN_LIGHTS)
+        path = PathTrack.from_waypoints(follow_lane(self.start_waypoint, self.distance + 400.0))
+        ego = self.ctx.ego(snapshot)
+        speed = (ego.speed() if ego is not None else 0.0) + self.speed_increment
+        # ConstantVelocityAgent speeds up at once when its path clears; 10 m/s² keeps that character
+        self._agent = ConstantVelocityAgent(
+            self.ctx.sim,
+            self.ev,
+            path,
+            speed,
+            detect_vehicles=True,
+            base_threshold=10.0,
+            speed_ratio=0.15,
+            resume_accel=10.0,
+        )
+
+    def extra_criteria(self) -> list[Criterion]:
+        """YieldToEmergencyVehicleTest on the spawned vehicle."""
+        if self.ev is None:
+            return []
+        self._test = YieldToEmergencyVehicleTest(self.ev)
+        return [self._test]
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Drive the vehicle; end 10 s after it came close, or 50 m after it passed the ego."""
+        ego = self.ctx.ego(snapshot)
+        ev = snapshot.actors.get(self.ev) if self.ev is not None else None
+        if ev is None:
+            # not in the snapshot yet (spawned this tick), or removed by somebody else
+            return ScenarioStatus.SUCCESS if self._seen else ScenarioStatus.RUNNING
+        self._seen = True
+        if ego is None or self._agent is None:
+            return ScenarioStatus.RUNNING
+        self._agent.speed = ego.speed() + self.speed_increment
+        self._agent.run_step(snapshot)
+        if snapshot.frame % self.lane_refresh_ticks == 0:
+            # The background keeps removed lanes as offsets from the ego's current lane; once the ego has moved
+            # over, the emergency vehicle's lane would be refilled, so it is removed again.
+            self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
+        if self._close.check(ego, ev.location) and self._idle.check(snapshot):
+            return ScenarioStatus.SUCCESS
+        if not self._passed:
+            self._passed = is_in_front(ev, ego)
+        if self._passed and self._ev_after.check(ev):
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Give the lane back to the background (under whichever ego-relative offsets it was removed)."""
+        if self.ev is not None:
+            for offset in range(-3, 4):
+                self.ctx.sim.background.readd_road_lane(offset)
+
+    def hint(self) -> ScenarioHint | None:
+        """The emergency vehicle, once it exists."""
+        if self.ev is None or self.ev not in self.actors:
+            return None
+        return ScenarioHint(self.xml_type, self.ev, self.ev, direction="left")

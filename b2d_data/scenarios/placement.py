@@ -1,0 +1,602 @@
+"""Scenario placement: where a town holds a scenario's layout, and Bench2Drive-like routes through those places.
+
+:func:`find_candidates` searches the town's lane graph for trigger points where a scenario type's layout exists
+(e.g. Accident: a second same-direction lane and a long junction-free stretch; junction turns: a connection making
+the right turn with the right signals and the flow's entry). :func:`make_routes` turns candidates into route XML
+:class:`~b2d_data.scenarios.route_xml.Route` objects (keypoints 2 m apart, the trigger point, parameters sampled
+in the ranges of expert-and-scenarios.md §2.2, two weather entries at 0 and 100 %), checking each one by densifying
+it exactly as the leaderboard does and setting up the scenario on it. Everything is deterministic for
+(town, scenario type, n, seed); route ids are ``(seed × 100 + type index) × 10000 + k``.
+"""
+
+from __future__ import annotations
+
+import logging
+import zlib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from b2d_data.format.scenario_types import SCENARIO_TYPES
+from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.format.weather import WEATHER_IDS, preset
+from b2d_data.maps import LaneType, Map, Waypoint
+from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    connection,
+    entries_from,
+    find_side_lane,
+    is_driving,
+    is_outermost_driving,
+    junction_lanes,
+    lane_walk,
+    move_along,
+    opposite_driving_neighbour,
+    same_direction_driving_neighbour,
+    yaw_diff,
+)
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, scenario_class
+from b2d_data.scenarios.route import DenseRoute
+from b2d_data.scenarios.route_xml import Route, ScenarioConfig
+
+log = logging.getLogger(__name__)
+
+#: Spacing of route keypoints, as in Bench2Drive's route files (m).
+KEYPOINT_SPACING = 2.0
+#: Spacing of candidate trigger points along lanes (m).
+CANDIDATE_SPACING = 20.0
+#: Step of the lane walks that check a stretch (m).
+CHECK_STEP = 5.0
+#: Lane runs are measured up to this length (m); larger than any stretch a layout asks for.
+RUN_CAP = 1000.0
+#: Obstacle/highway routes are about this long (m).
+ROUTE_LENGTH = 150.0
+#: Largest heading change (deg) over the stretch of an obstacle scenario ("straight-ish").
+STRAIGHTISH = 30.0
+#: A dense route may stray this far from the planned lane path before the candidate is rejected (m).
+MAX_ROUTE_DEVIATION = 1.5
+
+
+class PlacementError(ValueError):
+    """A town without the layout a scenario type needs (the message names the layout)."""
+
+
+# ------------------------------------------------------------------------------------------------ candidates
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """A place for one scenario: its trigger waypoint and how the route reaches it and leaves it.
+
+    Straight candidates walk ``pre`` m back and the rest of the route length forward along the lane; junction
+    candidates run ``approach`` m before the junction, through ``connection`` and ``departure`` m beyond it.
+    ``fixed`` holds parameters the layout decides (e.g. OppositeVehicleRunningRedLight's ``direction``).
+    """
+
+    scenario_type: str
+    layout: str
+    trigger: Waypoint
+    connection: JunctionLane | None = None
+    fixed: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+
+    @property
+    def location(self) -> Location:
+        """The trigger waypoint's location."""
+        return self.trigger.transform.location
+
+    def path(self, rng: np.random.Generator) -> tuple[list[Waypoint], Waypoint] | None:
+        """The planned route as lane waypoints 2 m apart and its trigger waypoint (None when the lanes end)."""
+        spec = LAYOUTS[self.scenario_type]
+        step = KEYPOINT_SPACING
+        if self.connection is None:
+            pre = float(rng.uniform(*spec.pre)) if spec.pre[1] > 0 else 0.0
+            back = lane_walk(self.trigger, pre, forward=False, step=step) if pre > 0 else [self.trigger]
+            ahead = lane_walk(self.trigger, spec.length - pre, step=step)
+            # end before the next junction when the scenario's stretch is covered: junction traffic is no part of
+            # these scenarios and only makes their routes longer to finish
+            first_junction = next((k for k, wp in enumerate(ahead) if wp.is_junction), None)
+            if first_junction is not None and (first_junction - 3) * step >= spec.clear_after:
+                ahead = ahead[: first_junction - 2]
+            if (len(ahead) - 1) * step < spec.clear_after:
+                return None
+            return list(reversed(back)) + ahead[1:], self.trigger
+        conn = self.connection
+        approach = float(rng.uniform(*spec.approach))
+        departure = float(rng.uniform(*spec.departure))
+        back = lane_walk(conn.entry, approach, forward=False, step=step)
+        if any(wp.is_junction for wp in back) or len(back) * step < spec.approach[0]:
+            return None
+        inside = [conn.start]
+        while inside[-1].is_junction and len(inside) < 200:
+            options = [o for o in inside[-1].next(step) if o.road_id == conn.start.road_id or not o.is_junction]
+            if not options:
+                break
+            inside.append(options[0])
+        after = lane_walk(conn.exit, departure, step=step)
+        if any(wp.is_junction for wp in after) or len(after) * step < spec.departure[0]:
+            return None
+        path = list(reversed(back)) + [wp for wp in inside if wp.is_junction] + after
+        offset = float(rng.uniform(*spec.trigger_offset))
+        trigger = path[min(round(offset / step), len(back) - 1)]
+        return path, trigger
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What a scenario type needs from the town.
+
+    Straight layouts: ``lane_ok`` must hold at the trigger and every 5 m over ``clear_after`` m (junction-free, turning
+    by at most ``max_turn`` degrees), the lane must be junction-free ``clear_before`` m back, and ``extra`` (if any)
+    must accept the trigger.
+    Junction layouts: connections with a turn in ``turns``, signalised or not (``signalized``), with a stop sign
+    on the approach (``stop_sign``), accepted by ``junction_extra`` (which may return fixed parameters).
+    """
+
+    name: str
+    description: str
+    lane_ok: Callable[[Waypoint], bool] | None = None
+    clear_before: float = 20.0
+    clear_after: float = 100.0
+    pre: tuple[float, float] = (10.0, 14.0)
+    length: float = ROUTE_LENGTH
+    extra: Callable[[Map, Waypoint], bool] | None = None
+    #: Largest heading change (deg) allowed over the ``clear_after`` stretch (None: any).
+    max_turn: float | None = None
+    turns: tuple[str, ...] = ()
+    signalized: bool | None = None
+    stop_sign: bool = False
+    approach: tuple[float, float] = (30.0, 38.0)
+    departure: tuple[float, float] = (22.0, 30.0)
+    trigger_offset: tuple[float, float] = (2.0, 8.0)
+    junction_extra: Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]] | None = None
+
+    @property
+    def is_junction(self) -> bool:
+        """Junction layouts have turns."""
+        return bool(self.turns)
+
+
+def _multi_lane_left(wp: Waypoint) -> bool:
+    return is_driving(wp) and same_direction_driving_neighbour(wp, "left") is not None
+
+
+def _multi_lane_rightmost(wp: Waypoint) -> bool:
+    return _multi_lane_left(wp) and is_outermost_driving(wp, "right")
+
+
+def _multi_lane_any(wp: Waypoint) -> bool:
+    return is_driving(wp) and (
+        same_direction_driving_neighbour(wp, "left") is not None
+        or same_direction_driving_neighbour(wp, "right") is not None
+    )
+
+
+def _two_way_single(wp: Waypoint) -> bool:
+    return (
+        is_driving(wp)
+        and opposite_driving_neighbour(wp) is not None
+        and same_direction_driving_neighbour(wp, "left") is None
+        and same_direction_driving_neighbour(wp, "right") is None
+    )
+
+
+def _rightmost(wp: Waypoint) -> bool:
+    return is_driving(wp) and is_outermost_driving(wp, "right")
+
+
+def _any_lane(wp: Waypoint) -> bool:
+    return is_driving(wp)
+
+
+def _opposite_flow_room(town: Map, wp: Waypoint) -> bool:
+    """The opposite lane continues 1.5 × limit + 30 m both ways around the furthest obstacle position."""
+    obstacle = move_along(wp, 44.0, step=11.0)
+    if obstacle is None:
+        return False
+    opposite = opposite_driving_neighbour(obstacle)
+    if opposite is None:
+        return False
+    reach = 1.5 * town.speed_limit(obstacle) + 30.0
+    return bool(opposite.previous(reach)) and bool(opposite.next(reach))
+
+
+def _sidewalk_ahead(town: Map, wp: Waypoint) -> bool:
+    """A sidewalk on the right where the blocker and the pedestrian stand (40–51 m after the trigger)."""
+    ahead: Waypoint | None = move_along(wp, 40.0, step=10.0)
+    for step in (5.0, 6.0, 0.0):
+        if ahead is None or find_side_lane(ahead, "right", LaneType.SIDEWALK) is None:
+            return False
+        if step:
+            ahead = move_along(ahead, step, step=step)
+    return True
+
+
+def _parking_slot(town: Map, wp: Waypoint) -> bool:
+    """A parking lane on the right that extends 14 m back and forward."""
+    parking = wp.get_right_lane()
+    if parking is None or not parking.lane_type & LaneType.PARKING:
+        return False
+    for forward in (True, False):
+        end = move_along(parking, 14.0, forward=forward)
+        if end is None or not end.lane_type & LaneType.PARKING:
+            return False
+    return True
+
+
+def _red_light_runner(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Directions whose straight crossing meets the ego: left/right for a straight ego, opposite for a left turn."""
+    directions = ("left", "right") if conn.turn == "straight" else ("opposite",) if conn.turn == "left" else ()
+    out = []
+    for direction in directions:
+        for entry in entries_from(lanes, conn.entry, direction):
+            if connection(lanes, entry, "straight") is not None:
+                out.append({"direction": {"value": direction}})
+                break
+    return out
+
+
+def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]]:
+    def check(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+        for entry in entries_from(lanes, conn.entry, direction):
+            straight = connection(lanes, entry, "straight")
+            if straight is not None and move_along(straight.exit, 45.0, step=CHECK_STEP) is not None:
+                return [{}]
+        return []
+
+    return check
+
+
+#: The layout of each implemented scenario type.
+LAYOUTS: dict[str, Layout] = {
+    "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
+                       clear_after=120.0, max_turn=STRAIGHTISH),
+    "ParkedObstacleTwoWays": Layout("two_way_street", "one lane each way, 100 m junction-free, opposite lane "
+                                    "continuing ~105 m around the obstacle", _two_way_single, clear_after=100.0,
+                                    extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+    "HazardAtSideLane": Layout("multi_lane", "two same-direction lanes (ego on the right one), 130 m junction-free",
+                               _multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH),
+    "HardBreakRoute": Layout("road", "any driving lane, 60 m junction-free", _any_lane, clear_after=60.0),
+    "DynamicObjectCrossing": Layout("sidewalk", "rightmost lane with a sidewalk on the right, 110 m junction-free",
+                                    _rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH),
+    # Longer than the others: the scenario may last 10 s after the trigger, ~200 m on a fast road.
+    "YieldToEmergencyVehicle": Layout("multi_lane", "two same-direction lanes, 35 m behind and 200 m ahead "
+                                      "junction-free", _multi_lane_any, clear_before=35.0, clear_after=200.0,
+                                      max_turn=STRAIGHTISH, length=230.0),
+    "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane, 40 m junction-free", _any_lane,
+                          clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot),
+    "OppositeVehicleRunningRedLight": Layout(
+        "signalized_junction", "a signalised junction crossed straight (or turning left) with a straight crossing "
+        "entry", turns=("straight", "left"), signalized=True, junction_extra=_red_light_runner),
+    "SignalizedJunctionLeftTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=True, junction_extra=_flow_from("opposite")),
+    "NonSignalizedJunctionRightTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=False, junction_extra=_flow_from("left")),
+    "VanillaSignalizedTurnEncounterRedLight": Layout(
+        "signalized_junction", "a signalised junction where the route turns", turns=("left", "right"),
+        signalized=True, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+    "VanillaNonSignalizedTurnEncounterStopsign": Layout(
+        "stop_sign_junction", "an unsignalised junction with a stop sign on the approach where the route turns",
+        turns=("left", "right"), signalized=False, stop_sign=True, approach=(28.0, 36.0), departure=(18.0, 26.0),
+        trigger_offset=(3.0, 5.0)),
+}  # fmt: skip
+
+
+def _check_type(scenario_type: str) -> Layout:
+    scenario_class(scenario_type)  # unknown types: error listing the known ones
+    try:
+        return LAYOUTS[scenario_type]
+    except KeyError:
+        raise PlacementError(f"no placement rule for scenario type {scenario_type!r}") from None
+
+
+class _RunLength:
+    """Metres of good lane (junction-free, ``lane_ok``) from a waypoint on, in 5 m steps, memoised along lanes.
+
+    ``run(p) = 0`` for a bad point, else ``5 + run(next(p))`` (a dead end counts as bad), saturating at ``cap``
+    (which must exceed every distance asked for). Walks from neighbouring candidates share their points, so every
+    lane point is examined about once.
+    """
+
+    def __init__(self, lane_ok: Callable[[Waypoint], bool] | None, forward: bool, cap: float) -> None:
+        self.lane_ok = lane_ok
+        self.forward = forward
+        self.cap = cap
+        self.memo: dict[tuple[int, int, int, float], float] = {}
+
+    def _key(self, wp: Waypoint) -> tuple[int, int, int, float]:
+        return (wp.road_id, wp.section_id, wp.lane_id, round(wp.s, 1))
+
+    def __call__(self, wp: Waypoint | None) -> float:
+        chain: list[tuple[int, int, int, float]] = []
+        tail = 0.0
+        current = wp
+        while current is not None:
+            key = self._key(current)
+            if key in self.memo:
+                tail = self.memo[key]
+                break
+            if current.is_junction or (self.lane_ok is not None and not self.lane_ok(current)):
+                self.memo[key] = 0.0
+                break
+            chain.append(key)
+            if len(chain) * CHECK_STEP >= self.cap:
+                break
+            current = move_along(current, CHECK_STEP, forward=self.forward, step=CHECK_STEP)
+        for key in reversed(chain):
+            tail = min(self.cap, tail + CHECK_STEP)
+            self.memo[key] = tail
+        return self.memo[self._key(wp)] if wp is not None else 0.0
+
+    def ok(self, wp: Waypoint, distance: float) -> bool:
+        """The sample points 5, 10, … ``distance`` m from ``wp`` are all good."""
+        if distance <= 0:
+            return True
+        nxt = move_along(wp, CHECK_STEP, forward=self.forward, step=CHECK_STEP)
+        return nxt is not None and self(nxt) >= distance - 1e-6
+
+
+def _stretch_ok(wp: Waypoint, distance: float, forward: bool, lane_ok: Callable[[Waypoint], bool] | None) -> bool:
+    """The lane is junction-free (and ``lane_ok``) at 5 m steps over ``distance`` m from ``wp``."""
+    return _RunLength(lane_ok, forward, RUN_CAP).ok(wp, distance)
+
+
+def _turn_ahead(wp: Waypoint, distance: float, step: float = 10.0) -> float:
+    """Largest heading difference (deg) from ``wp`` over the next ``distance`` m of lane (10 m samples)."""
+    yaw0 = wp.transform.rotation.yaw
+    worst, current, walked = 0.0, wp, 0.0
+    while walked < distance and current is not None:
+        current = move_along(current, step, step=step)
+        walked += step
+        if current is not None:
+            worst = max(worst, abs(yaw_diff(yaw0, current.transform.rotation.yaw)))
+    return worst
+
+
+def _straight_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Candidate]:
+    out = []
+    ahead = _RunLength(spec.lane_ok, True, RUN_CAP)
+    behind = _RunLength(None, False, RUN_CAP)
+    for wp in town.generate_waypoints(CANDIDATE_SPACING):
+        if wp.is_junction or spec.lane_ok is None or not spec.lane_ok(wp):
+            continue
+        if not ahead.ok(wp, spec.clear_after):
+            continue
+        if spec.clear_before > 0 and not behind.ok(wp, spec.clear_before):
+            continue
+        if spec.max_turn is not None and _turn_ahead(wp, spec.clear_after) > spec.max_turn:
+            continue
+        if spec.extra is not None and not spec.extra(town, wp):
+            continue
+        out.append(Candidate(scenario_type, spec.name, wp))
+    return out
+
+
+def _signal_lanes(signals) -> set[tuple[int, int]]:
+    return {(lane.road_id, lane.lane_id) for s in signals for lane in s.lanes}
+
+
+def _junction_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Candidate]:
+    lights = town.traffic_lights()
+    lit_junctions = {s.junction_id for s in lights}
+    lit_lanes = _signal_lanes(lights)
+    stop_lanes = _signal_lanes(town.stop_signs())
+    out = []
+    for junction_id in sorted(town.junctions):
+        junction = town.junctions[junction_id]
+        lanes = junction_lanes(junction)
+        lanes.sort(key=lambda c: (c.entry.road_id, c.entry.lane_id, c.exit.road_id, c.exit.lane_id))
+        for conn in lanes:
+            if conn.turn not in spec.turns:
+                continue
+            # signals reference either the incoming lane or (CARLA's towns) the junction's connecting lane
+            keys = {(conn.entry.road_id, conn.entry.lane_id), (conn.start.road_id, conn.start.lane_id)}
+            if spec.signalized is True and not keys & lit_lanes:
+                continue
+            if spec.signalized is False and (junction_id in lit_junctions or keys & lit_lanes):
+                continue
+            if spec.stop_sign and not keys & stop_lanes:
+                continue
+            if not _stretch_ok(conn.entry, spec.approach[1], False, None):
+                continue
+            if not _stretch_ok(conn.exit, spec.departure[1], True, None):
+                continue
+            variants = spec.junction_extra(conn, lanes) if spec.junction_extra is not None else [{}]
+            for fixed in variants:
+                out.append(Candidate(scenario_type, spec.name, conn.entry, conn, fixed))
+    return out
+
+
+def find_candidates(town: Map, scenario_type: str) -> list[Candidate]:
+    """Every place in ``town`` where ``scenario_type``'s layout exists, in a deterministic order."""
+    spec = _check_type(scenario_type)
+    if spec.is_junction:
+        found = _junction_candidates(town, scenario_type, spec)
+    else:
+        found = _straight_candidates(town, scenario_type, spec)
+    log.info("%s: %d candidate places for %s", town.name, len(found), scenario_type)
+    return found
+
+
+# ------------------------------------------------------------------------------------------------ parameters
+
+
+def _int(rng: np.random.Generator, lo: int, hi: int) -> str:
+    return str(int(rng.integers(lo, hi + 1)))
+
+
+def _value(v: str) -> dict[str, str]:
+    return {"value": v}
+
+
+def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str, dict[str, str]]:
+    """XML parameters drawn in the ranges of expert-and-scenarios.md §2.2 (integers, as in Bench2Drive's routes)."""
+    if scenario_type == "Accident":
+        return {"distance": _value(_int(rng, 40, 44)), "direction": _value("right"), "speed": _value(_int(rng, 53, 57))}
+    if scenario_type == "ParkedObstacleTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 44)),
+            "frequency": {"from": _int(rng, 31, 56), "to": _int(rng, 106, 151)},
+        }
+    if scenario_type == "HazardAtSideLane":
+        return {
+            "distance": _value(_int(rng, 41, 45)),
+            "speed": _value(_int(rng, 32, 59)),
+            "bicycle_drive_distance": _value(_int(rng, 40, 101)),
+            "bicycle_speed": _value(_int(rng, 6, 12)),
+        }
+    if scenario_type == "DynamicObjectCrossing":
+        model = BLOCKER_MODELS[int(rng.integers(len(BLOCKER_MODELS)))]
+        return {
+            "distance": _value(_int(rng, 40, 50)),
+            "direction": _value("right"),
+            "blocker_model": _value(model),
+            "crossing_angle": _value(_int(rng, 0, 11)),
+        }
+    # Junction flows: the slower, sparser part of §2.2's ranges. The expert turns through a gap only when no flow
+    # car's 2 s forecast meets its own; denser or faster flows (down to 1 s headways) leave it waiting for good.
+    if scenario_type == "SignalizedJunctionLeftTurn":
+        return {
+            "flow_speed": _value(_int(rng, 9, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 28)},
+        }
+    if scenario_type == "NonSignalizedJunctionRightTurn":
+        return {
+            "flow_speed": _value(_int(rng, 8, 11)),
+            "source_dist_interval": {"from": _int(rng, 18, 22), "to": _int(rng, 27, 30)},
+        }
+    if scenario_type == "YieldToEmergencyVehicle":
+        return {"distance": _value(_int(rng, 26, 30))}
+    if scenario_type == "ParkingExit":
+        return {
+            "direction": _value("right"),
+            "front_vehicle_distance": _value("9"),
+            "behind_vehicle_distance": _value("9"),
+        }
+    return {}
+
+
+# ------------------------------------------------------------------------------------------------ routes
+
+
+def route_id(seed: int, scenario_type: str, k: int) -> str:
+    """Route id: unique over seeds, types and the first 10 000 routes of a call."""
+    index = next(i for i, t in enumerate(SCENARIO_TYPES) if t.xml_type == scenario_type)
+    return str((int(seed) * 100 + index) * 10000 + k + 1)
+
+
+def _keypoints(path: Sequence[Waypoint]) -> tuple[Location, ...]:
+    """Keypoints of a lane path: its points outside junctions (the planner finds the connection between them)."""
+    return tuple(wp.transform.location for wp in path if not wp.is_junction)
+
+
+def _deviation(dense: DenseRoute, path: Sequence[Waypoint]) -> float:
+    planned = np.array([[wp.transform.location.x, wp.transform.location.y] for wp in path])
+    d = np.hypot(dense.locations[:, None, 0] - planned[None, :, 0], dense.locations[:, None, 1] - planned[None, :, 1])
+    return float(d.min(axis=1).max())
+
+
+def _route_for(
+    town: Map, candidate: Candidate, rng: np.random.Generator, rid: str, index: int, weather_id: int
+) -> Route | None:
+    """Build and check one route on a candidate; None when it does not hold up."""
+    planned = candidate.path(rng)
+    if planned is None:
+        return None
+    path, trigger = planned
+    keypoints = _keypoints(path)
+    if len(keypoints) < 2:
+        return None
+    params = _sample_parameters(candidate.scenario_type, rng)
+    params.update({k: dict(v) for k, v in candidate.fixed.items()})
+    t = trigger.transform
+    config = ScenarioConfig(
+        name=f"{candidate.scenario_type}_{index}", type=candidate.scenario_type,
+        trigger_point=Transform(Location(t.location.x, t.location.y, t.location.z), Rotation(yaw=t.rotation.yaw)),
+        other_parameters=params,
+    )  # fmt: skip
+    try:
+        dense = DenseRoute.from_keypoints(town, keypoints)
+    except (ValueError, RuntimeError) as exc:
+        log.debug("%s: no dense route (%s)", rid, exc)
+        return None
+    if _deviation(dense, path) > MAX_ROUTE_DEVIATION:
+        log.debug("%s: the planner's route leaves the planned lanes", rid)
+        return None
+    try:
+        scenario_class(candidate.scenario_type)(
+            ScenarioContext(
+                sim=None,
+                map=town,
+                route=dense,
+                config=config,  # type: ignore[arg-type]
+                rng=np.random.default_rng(0),
+                ego_id=-1,
+            )
+        )
+    except ScenarioError as exc:
+        log.debug("%s: scenario set-up rejected the place: %s", rid, exc)
+        return None
+    weather = preset(weather_id)
+    return Route(
+        id=rid, town=town.name, waypoints=keypoints, scenarios=(config,), weathers=((0.0, weather), (100.0, weather))
+    )
+
+
+def make_routes(
+    town: Map, scenario_type: str, n: int, seed: int = 0, weathers: Sequence[int] | None = None
+) -> list[Route]:
+    """``n`` routes holding one ``scenario_type`` scenario each, on distinct places while there are enough.
+
+    ``weathers`` lists the preset ids to draw from (default: all 23). Raises :class:`PlacementError` when the town
+    lacks the layout (message names it) or no candidate survives the checks.
+    """
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    spec = _check_type(scenario_type)
+    pool = tuple(int(w) for w in weathers) if weathers is not None else WEATHER_IDS
+    for w in pool:
+        preset(w)  # unknown ids raise here, naming the valid ones
+    if not pool:
+        raise ValueError("weathers must list at least one preset id")
+    candidates = find_candidates(town, scenario_type)
+    if not candidates:
+        raise PlacementError(
+            f"{town.name} has no place for {scenario_type}: layout '{spec.name}' missing ({spec.description})"
+        )
+    rng = np.random.default_rng([int(seed), zlib.crc32(scenario_type.encode("utf-8"))])
+    order = [int(i) for i in rng.permutation(len(candidates))]
+    routes: list[Route] = []
+    usable: list[Candidate] = []
+    for i in order:
+        if len(routes) >= n:
+            break
+        k = len(routes)
+        route = _route_for(
+            town, candidates[i], rng, route_id(seed, scenario_type, k), k + 1, pool[int(rng.integers(len(pool)))]
+        )
+        if route is not None:
+            routes.append(route)
+            usable.append(candidates[i])
+    if not usable and n > 0:
+        raise PlacementError(
+            f"{town.name}: none of the {len(candidates)} places with layout '{spec.name}' gives a valid "
+            f"{scenario_type} route"
+        )
+    # more routes than places: reuse the good places with fresh parameters and route extents
+    attempts = 0
+    while len(routes) < n and attempts < 20 * n:
+        attempts += 1
+        k = len(routes)
+        candidate = usable[k % len(usable)]
+        route = _route_for(
+            town, candidate, rng, route_id(seed, scenario_type, k), k + 1, pool[int(rng.integers(len(pool)))]
+        )
+        if route is not None:
+            routes.append(route)
+    if len(routes) < n:
+        raise PlacementError(f"{town.name}: only {len(routes)} of {n} {scenario_type} routes could be built")
+    return routes

@@ -1,0 +1,128 @@
+"""Scenario placement on the generated towns and on CARLA towns: candidates, routes, parameters, replay."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from b2d_data.format.weather import PRESETS, preset
+from b2d_data.maps import load_opendrive
+from b2d_data.maps.towngen import write_town
+from b2d_data.scenarios.framework import SCENARIO_CLASSES, UnknownScenarioError
+from b2d_data.scenarios.placement import LAYOUTS, PlacementError, find_candidates, make_routes, route_id
+from b2d_data.scenarios.route import DenseRoute
+from b2d_data.scenarios.route_xml import read_routes, write_routes
+from b2d_data.scenarios.triggers import trigger_route_index
+
+IMPLEMENTED = sorted(t for t in SCENARIO_CLASSES if not t.endswith("ForTests"))
+
+
+@pytest.fixture(scope="module")
+def town(tmp_path_factory):
+    return load_opendrive(write_town("all", 0, tmp_path_factory.mktemp("towns")))
+
+
+@pytest.fixture(scope="module")
+def interurban(tmp_path_factory):
+    return load_opendrive(write_town("interurban", 0, tmp_path_factory.mktemp("towns")))
+
+
+def test_every_implemented_type_has_a_layout():
+    assert sorted(LAYOUTS) == IMPLEMENTED and len(IMPLEMENTED) == 12
+
+
+@pytest.mark.parametrize("scenario_type", IMPLEMENTED)
+def test_candidates_exist_in_the_all_layouts_preset(town, scenario_type):
+    candidates = find_candidates(town, scenario_type)
+    assert candidates, f"no place for {scenario_type}"
+    assert all(c.scenario_type == scenario_type and not c.trigger.is_junction for c in candidates)
+    if LAYOUTS[scenario_type].is_junction:
+        assert all(c.connection is not None and c.connection.turn in LAYOUTS[scenario_type].turns for c in candidates)
+
+
+def _in(value: str, lo: int, hi: int) -> bool:
+    return lo <= int(value) <= hi
+
+
+def test_accident_routes_are_complete_and_checked(town):
+    routes = make_routes(town, "Accident", 4, seed=3)
+    assert [r.id for r in routes] == [route_id(3, "Accident", k) for k in range(4)]
+    assert len({r.id for r in routes}) == 4
+    for k, r in enumerate(routes):
+        assert r.town == town.name and len(r.scenarios) == 1
+        sc = r.scenarios[0]
+        assert (sc.name, sc.type) == (f"Accident_{k + 1}", "Accident")
+        assert _in(sc.parameter("distance"), 40, 44) and _in(sc.parameter("speed"), 53, 57)
+        assert sc.parameter("direction") == "right"
+        # two identical weather entries at 0 % and 100 %, one of the 23 presets
+        (p0, w0), (p1, w1) = r.weathers
+        assert (p0, p1) == (0.0, 100.0) and w0 == w1 and w0 in PRESETS.values()
+        pts = np.array([[p.x, p.y] for p in r.waypoints])
+        steps = np.hypot(*np.diff(pts, axis=0).T)
+        # keypoints 2 m apart along the lane's reference line (a little more on the outside of curves)
+        assert np.all((steps > 1.9) & (steps < 2.3))
+        dense = DenseRoute.from_route(town, r)
+        assert 120.0 <= dense.total_length <= 160.0
+        index = trigger_route_index(dense, sc.trigger_point)
+        assert index is not None and 8.0 <= dense.cumulative_length[index] <= 16.0
+
+
+def test_junction_routes_turn_through_their_junction(town):
+    for r in make_routes(town, "SignalizedJunctionLeftTurn", 3, seed=0):
+        sc = r.scenarios[0]
+        assert _in(sc.parameter("flow_speed"), 9, 11)
+        assert _in(sc.parameter("source_dist_interval", "from"), 15, 24)
+        assert _in(sc.parameter("source_dist_interval", "to"), 25, 28)
+        dense = DenseRoute.from_route(town, r)
+        assert 50.0 <= dense.total_length <= 105.0  # Bench2Drive's junction routes are 60-90 m
+        index = trigger_route_index(dense, sc.trigger_point)
+        assert index is not None and dense.cumulative_length[index] <= 10.0
+        inside = [k for k, wp in enumerate(dense.waypoints) if wp.is_junction]
+        assert inside and inside[0] > index
+    for r in make_routes(town, "OppositeVehicleRunningRedLight", 3, seed=0):
+        assert r.scenarios[0].parameter("direction") in ("left", "right", "opposite")
+
+
+def test_routes_are_deterministic_and_replay_identically(town, tmp_path):
+    first = make_routes(town, "DynamicObjectCrossing", 3, seed=7, weathers=[1, 2])
+    again = make_routes(town, "DynamicObjectCrossing", 3, seed=7, weathers=[1, 2])
+    assert first == again
+    assert all(r.weathers[0][1] in (preset(1), preset(2)) for r in first)
+    other = make_routes(town, "DynamicObjectCrossing", 3, seed=8, weathers=[1, 2])
+    assert {r.id for r in other}.isdisjoint({r.id for r in first})
+    path = tmp_path / "routes.xml"
+    write_routes(first + make_routes(town, "ParkingExit", 2, seed=7), path)
+    back = read_routes(path)
+    assert back[:3] == first
+    assert [r.scenarios[0].type for r in back] == ["DynamicObjectCrossing"] * 3 + ["ParkingExit"] * 2
+
+
+def test_more_routes_than_places_reuse_places_with_new_parameters(town):
+    candidates = find_candidates(town, "VanillaNonSignalizedTurnEncounterStopsign")
+    routes = make_routes(town, "VanillaNonSignalizedTurnEncounterStopsign", len(candidates) + 3, seed=0)
+    assert len(routes) == len(candidates) + 3
+    assert len({r.id for r in routes}) == len(routes)
+
+
+def test_missing_layouts_and_unknown_types_are_explained(interurban, town):
+    with pytest.raises(PlacementError, match="layout 'multi_lane' missing"):
+        make_routes(interurban, "Accident", 1)
+    with pytest.raises(PlacementError, match="layout 'signalized_junction' missing"):
+        make_routes(interurban, "SignalizedJunctionLeftTurn", 1)
+    with pytest.raises(UnknownScenarioError, match="known types: Accident"):
+        make_routes(town, "Nope", 1)
+    with pytest.raises(KeyError):
+        make_routes(town, "Accident", 1, weathers=[99])
+    assert make_routes(town, "Accident", 0) == []
+
+
+def test_carla_towns(carla_maps_dir):
+    town04 = load_opendrive(carla_maps_dir / "Town04.xodr")
+    assert len(make_routes(town04, "YieldToEmergencyVehicle", 2, seed=0)) == 2
+    town07 = load_opendrive(carla_maps_dir / "Town07.xodr")
+    # Town07's stop signs govern the junctions' connecting lanes
+    assert find_candidates(town07, "VanillaNonSignalizedTurnEncounterStopsign")
+    town01 = load_opendrive(carla_maps_dir / "Town01.xodr")
+    assert make_routes(town01, "ParkedObstacleTwoWays", 1, seed=0)
+    with pytest.raises(PlacementError, match="parking_lane"):
+        make_routes(town01, "ParkingExit", 1)

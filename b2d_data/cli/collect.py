@@ -1,0 +1,243 @@
+"""``b2d-collect``: drive the expert through scenario routes on the builtin simulator and write Bench2Drive clips.
+
+Examples::
+
+    b2d-collect --scenario Accident --n 50 --out data/
+    b2d-collect --scenario HardBreakRoute --scenario ParkingExit --n 10 --workers 2 --out data/
+    b2d-collect --routes bench2drive220.xml --scenario Accident --xodr carla_maps/ --out b2d220/
+    b2d-collect --scenario Accident --n 50 --out data/ --resume        # after a crash or kill -9
+
+Clips are named ``<Scenario>_<Town>_Route<id>_Weather<w>``; only routes the expert completes without infraction
+(min-speed aside) become clips, unless ``--keep-failed`` (kept under ``OUT/failed/``). Every attempt is appended
+to ``OUT/run_log.jsonl``; per-route Leaderboard records go to ``OUT/results/`` (``b2d-eval summary OUT/results``);
+the final table is saved as ``OUT/summary.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from tqdm import tqdm
+
+from b2d_data.format.version import DEFAULT_FORMAT, FormatVersion
+
+PROG = "b2d-collect"
+#: Exit status when the targets were not all met (usage errors exit with 2, like argparse).
+EXIT_SHORT = 1
+EXIT_USAGE = 2
+
+
+class _TqdmHandler(logging.Handler):
+    """Log lines printed above the progress bar instead of through it."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            tqdm.write(self.format(record), file=sys.stderr)
+        except Exception:  # noqa: BLE001 - logging's own contract: report, never raise
+            self.handleError(record)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``b2d-collect``."""
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    what = p.add_argument_group("what to collect")
+    what.add_argument(
+        "--scenario",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="scenario type (repeatable), e.g. Accident; with --routes, a filter",
+    )
+    what.add_argument(
+        "--n", type=int, default=None, help="clips per scenario (default 1; with --routes: every selected route)"
+    )
+    what.add_argument("--out", type=Path, required=False, help="corpus folder (created if needed)")
+    where = what.add_mutually_exclusive_group()
+    where.add_argument("--town", metavar="PRESET", help="generated town preset (default: the one with every layout)")
+    where.add_argument(
+        "--xodr",
+        type=Path,
+        metavar="FILE|DIR",
+        help="an OpenDRIVE town (its stem is the town name), or with --routes a folder of <Town>.xodr",
+    )
+    what.add_argument("--routes", type=Path, metavar="FILE.xml", help="run the routes of a Leaderboard route file")
+    what.add_argument(
+        "--weather",
+        type=int,
+        action="append",
+        default=[],
+        metavar="ID",
+        help="weather preset id (repeatable; default: all 23 for generated routes, the file's own)",
+    )
+    what.add_argument("--seed", type=int, default=0, help="seed of the route list and of every route (default 0)")
+    how = p.add_argument_group("how")
+    how.add_argument("--workers", type=int, default=1, help="routes run in parallel processes (default 1)")
+    how.add_argument(
+        "--encode-workers",
+        type=int,
+        default=None,
+        help="encoder processes per clip (default: several with --workers 1, else none)",
+    )
+    how.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        default=None,
+        help="run one Ray task per route on a cluster (auto, host:port, or local); needs b2d-data[ray]",
+    )
+    how.add_argument("--resume", action="store_true", help="continue the collection in --out after a stop or crash")
+    how.add_argument("--keep-failed", action="store_true", help="keep the clips of failed routes under OUT/failed/")
+    how.add_argument(
+        "--attempts-per-clip",
+        type=int,
+        default=3,
+        help="generated routes tried per requested clip before giving up (default 3)",
+    )
+    how.add_argument(
+        "--no-sensors", action="store_true", help="physics only: run and score the routes, write records but no clip"
+    )
+    fmt = p.add_argument_group("format")
+    fmt.add_argument("--width", type=int, default=1600, help="camera width in pixels (default 1600)")
+    fmt.add_argument("--height", type=int, default=900, help="camera height in pixels (default 900)")
+    fmt.add_argument(
+        "--lidar-azimuth-steps", type=int, default=1000, help="LiDAR rays per channel and sweep (default 1000)"
+    )
+    fmt.add_argument(
+        "--format-version",
+        default=DEFAULT_FORMAT.value,
+        choices=[v.value for v in FormatVersion],
+        help=f"on-disk layout (default {DEFAULT_FORMAT.value})",
+    )
+    out = p.add_argument_group("output")
+    out.add_argument("--list-scenarios", action="store_true", help="print the scenarios that can be generated")
+    out.add_argument("--no-progress", action="store_true", help="no progress bar")
+    out.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
+    return p
+
+
+def _config(args: argparse.Namespace):
+    from b2d_data.collection.job import CollectConfig
+
+    return CollectConfig(
+        out=args.out, scenarios=tuple(args.scenario), n=args.n, town=args.town, xodr=args.xodr,
+        routes_file=args.routes, weathers=tuple(args.weather), workers=args.workers, seed=args.seed,
+        resume=args.resume, keep_failed=args.keep_failed, width=args.width, height=args.height,
+        lidar_azimuth_steps=args.lidar_azimuth_steps, format_version=FormatVersion(args.format_version),
+        sensors=not args.no_sensors, encode_workers=args.encode_workers,
+        attempts_per_clip=args.attempts_per_clip, ray_address=args.ray,
+    )  # fmt: skip
+
+
+def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    if args.out is None:
+        parser.error("--out DIR is required")
+    if args.width < 16 or args.height < 16:
+        parser.error("--width and --height must be at least 16 pixels")
+    if args.lidar_azimuth_steps < 1:
+        parser.error("--lidar-azimuth-steps must be positive")
+    if args.attempts_per_clip < 1:
+        parser.error("--attempts-per-clip must be at least 1")
+    if args.encode_workers is not None and args.encode_workers < 0:
+        parser.error("--encode-workers must be 0 or more")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``b2d-collect``; returns the exit status (0 done, 1 targets not met, 2 usage error, 130 interrupted)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.WARNING if args.verbose == 0 else logging.INFO if args.verbose == 1 else logging.DEBUG
+    handler = _TqdmHandler()
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    root = logging.getLogger()
+    root.addHandler(handler)
+    previous_level = root.level
+    root.setLevel(level)
+    previous_term = _stop_on_sigterm()
+    try:
+        return _run(parser, args)
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(previous_level)
+        if previous_term is not None:
+            signal.signal(signal.SIGTERM, previous_term)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _stop_on_sigterm() -> object | None:
+    """Treat SIGTERM (batch schedulers) like Ctrl-C: the clip being written is dropped, the run log stays valid."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _interrupt)
+
+
+def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    from b2d_data.collection.runner import CollectError, Progress, collect, implemented_scenarios, summary_table
+    from b2d_data.collection.towns import TownError
+    from b2d_data.format.errors import B2DFormatError
+
+    if args.list_scenarios:
+        print("\n".join(implemented_scenarios()))
+        return 0
+    _check_args(parser, args)
+    bar: tqdm | None = None
+    failures = 0
+
+    def on_progress(p: Progress) -> None:
+        nonlocal bar, failures
+        if args.no_progress:
+            return
+        if bar is None:
+            bar = tqdm(total=p.requested, initial=p.clips, unit="clip", desc=PROG, dynamic_ncols=True)
+        if p.result is not None and p.result.status != "clip":
+            failures += 1
+            tqdm.write(
+                f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}",
+                file=sys.stderr,
+            )
+        bar.n = p.clips
+        bar.set_postfix(attempts=p.attempts, failed=failures, refresh=False)
+        bar.refresh()
+
+    try:
+        summary = collect(_config(args), on_progress)
+    except (CollectError, TownError, B2DFormatError) as exc:
+        if bar is not None:
+            bar.close()
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        print(f"{PROG}: interrupted; run the same command with --resume to finish", file=sys.stderr)
+        return 130
+    if bar is not None:
+        bar.close()
+    print(summary_table(summary))
+    per_clip = summary.seconds_per_clip
+    timing = f", {per_clip:.1f} s per clip" if per_clip is not None else ""
+    kind = "records" if not summary.sensors else "clips"
+    print(
+        f"{summary.clips_this_run} {kind} from {summary.attempts_this_run} attempts in "
+        f"{summary.wall_seconds:.1f} s{timing}; summary in {Path(summary.out) / 'summary.json'}"
+    )
+    if summary.skipped_routes:
+        print(f"skipped {len(summary.skipped_routes)} route(s) without a map: {', '.join(summary.skipped_routes[:10])}")
+    if not summary.complete:
+        short = [f"{s.scenario} {s.clips}/{s.requested}" for s in summary.scenarios if not s.complete]
+        print(
+            f"{PROG}: targets not met: {', '.join(short)} (raise --attempts-per-clip or use another --seed)",
+            file=sys.stderr,
+        )
+        return EXIT_SHORT
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

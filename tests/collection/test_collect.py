@@ -1,0 +1,411 @@
+"""``b2d-collect`` end to end at a tiny resolution: clips, annotations vs the simulator, kill -9 + resume, errors.
+
+The routes are the generated Accident routes of the default town, cut to ~22 m (the accident lies beyond the route's
+end, its actors are within the 100 m annotation radius from the start), so that a clip takes seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from b2d_data.cli.collect import main
+from b2d_data.codecs.anno_json import read_anno
+from b2d_data.collection import run_log as rl
+from b2d_data.collection.towns import TownSource, load_map
+from b2d_data.format.names import ClipName
+from b2d_data.format.road_option import RoadOption
+from b2d_data.scenarios.route_xml import read_routes, write_routes
+
+N = 2
+TINY = ["--width", "64", "--height", "36", "--lidar-azimuth-steps", "90", "--encode-workers", "0", "--no-progress"]
+ROUTE_LENGTH = 22.0  # m of each generated route that the tests keep
+
+
+@pytest.fixture(scope="module")
+def short_routes(tmp_path_factory) -> tuple[Path, Path]:
+    """(Town100.xodr, a route file with 3 short Accident routes on it)."""
+    from b2d_data.scenarios import placement
+    from b2d_data.scenarios.route import DenseRoute
+    from b2d_data.scenarios.triggers import trigger_route_index
+
+    folder = tmp_path_factory.mktemp("town")
+    town = TownSource(preset="all").materialise(folder)
+    world_map = load_map(town)
+    short = []
+    for route in placement.make_routes(world_map, "Accident", 3, seed=0):
+        start = route.waypoints[0]
+        keep = tuple(p for p in route.waypoints if math.hypot(p.x - start.x, p.y - start.y) <= ROUTE_LENGTH)
+        cut = replace(route, waypoints=keep)
+        dense = DenseRoute.from_route(world_map, cut)
+        assert trigger_route_index(dense, cut.scenarios[0].trigger_point) is not None, "trigger cut off the route"
+        short.append(cut)
+    path = folder / "short_accident.xml"
+    write_routes(short, path)
+    return town.xodr, path
+
+
+def _args(short_routes: tuple[Path, Path], out: Path, *extra: str) -> list[str]:
+    xodr, routes = short_routes
+    return [
+        "--routes",
+        str(routes),
+        "--xodr",
+        str(xodr),
+        "--scenario",
+        "Accident",
+        "--n",
+        str(N),
+        "--seed",
+        "7",
+        "--out",
+        str(out),
+        *TINY,
+        *extra,
+    ]
+
+
+def _clips(out: Path) -> list[Path]:
+    return sorted(p for p in out.iterdir() if p.is_dir() and not p.name.startswith(".") and (p / "anno").is_dir())
+
+
+def _temporaries(out: Path) -> list[Path]:
+    return [p for p in out.rglob(".*") if ".tmp-" in p.name or ".old-" in p.name]
+
+
+@pytest.fixture(scope="module")
+def collection(short_routes, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("corpus") / "data"
+    assert main(_args(short_routes, out)) == 0
+    return out
+
+
+def test_collects_exactly_n_clips_that_load(collection):
+    from b2d_data import ClipDataset
+
+    clips = _clips(collection)
+    assert len(clips) == N
+    records = rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))
+    by_clip = {r["clip"]: r for r in records if r["status"] == "clip"}
+    assert sorted(by_clip) == [c.name for c in clips]
+    for clip in clips:
+        name = ClipName.parse(clip.name)
+        assert (name.scenario, name.town) == ("Accident", "Town100")
+        assert (collection / "results" / f"{clip.name}.json").is_file()
+    assert (collection / "maps" / "Town100_HD_map.npz").is_file()
+    summary = json.loads((collection / "summary.json").read_text())
+    assert summary["complete"] and summary["scenarios"][0]["clips"] == N
+
+    ds = ClipDataset(collection, index="memory", radar=True, depth=True, semantic=True, instance=True, keep_anno=True)
+    frames = {c.name: by_clip[c.name]["frames"] for c in clips}
+    assert len(ds) == sum(frames.values())
+    for i in (0, len(ds) - 1):
+        sample = ds[i]
+        assert sample["images"].shape == (6, 36, 64, 3)
+        assert sample["depth"].shape == sample["semantic"].shape == sample["instance"].shape == (6, 36, 64)
+        assert sample["lidar"].ndim == 2 and sample["lidar"].shape[0] > 0
+        assert "radar" in sample and sample["boxes"].shape[1] == 7
+    for clip in clips:
+        n = frames[clip.name]
+        assert len(list((clip / "anno").glob("*.json.gz"))) == n
+        assert len(list((clip / "camera" / "rgb_top_down").glob("*.jpg"))) == n
+        from b2d_data.codecs.jpeg import read_jpeg
+
+        assert read_jpeg(clip / "camera" / "rgb_top_down" / f"{n - 1:05d}.jpg").shape == (36, 64, 3)
+
+
+def _resimulate(collection: Path, clip: Path, short_routes) -> list[dict]:
+    """Run the clip's route again without sensors, recording the simulator state at every recorded tick."""
+    from b2d_data.expert import Expert, ExpertConfig
+    from b2d_data.scenarios.route import DenseRoute
+    from b2d_data.scenarios.route_runner import RouteRunner
+    from b2d_data.sim.builtin.world import BuiltinSimulator
+
+    xodr, routes_file = short_routes
+    name = ClipName.parse(clip.name)
+    record = next(
+        r for r in rl.final_records(rl.read_run_log(collection / rl.LOG_FILE)) if r["route_id"] == str(name.route_id)
+    )
+    route = next(r for r in read_routes(routes_file) if r.id == str(name.route_id))
+    world_map = load_map(TownSource(xodr=xodr))
+    sim = BuiltinSimulator(world_map, seed=record["seed"], weather=route.weather_at(0.0))
+    dense = DenseRoute.from_route(world_map, route)
+    expert = Expert(world_map, dense, ExpertConfig.for_builtin(), seed=record["seed"])
+    states: list[dict] = []
+
+    def on_frame(snapshot, info):
+        ego = snapshot.actors[info.ego_id]
+        scenario_ids = {
+            a.id
+            for a in snapshot.actors.values()
+            if a.role_name == "scenario" and a.parent_id is None and ego.location.distance_2d(a.location) <= 100.0
+        }
+        states.append({"ego": ego.transform, "scenario_ids": scenario_ids})
+
+    RouteRunner(sim, route, expert, seed=record["seed"], on_frame=on_frame, dense_route=dense).run()
+    sim.close()
+    return states
+
+
+def test_annotations_agree_with_the_simulator(collection, short_routes):
+    clip = _clips(collection)[0]
+    states = _resimulate(collection, clip, short_routes)
+    annos = [read_anno(p) for p in sorted((clip / "anno").glob("*.json.gz"))]
+    assert len(annos) == len(states)
+    valid_commands = {int(o) for o in RoadOption}
+    seen_scenario_actor = False
+    for anno, state in zip(annos, states):
+        ego = anno["bounding_boxes"][0]
+        assert ego["class"] == "ego_vehicle"
+        t = state["ego"]
+        np.testing.assert_allclose(ego["location"], [t.location.x, t.location.y, t.location.z], atol=1e-4)
+        np.testing.assert_allclose(ego["rotation"], t.rotation.to_anno(), atol=1e-4)
+        np.testing.assert_allclose(np.array(ego["world2ego"]), t.inverse_matrix(), atol=1e-4)
+        ids = {box["id"] for box in anno["bounding_boxes"][1:]}
+        assert {str(i) for i in state["scenario_ids"]} <= ids
+        seen_scenario_actor |= bool(state["scenario_ids"])
+        for key in ("next_command", "command_near", "command_far"):
+            assert anno[key] in valid_commands
+    assert seen_scenario_actor, "the accident's actors never showed up within 100 m"
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every live process below ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found: set[int] = set()
+    todo = [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeout: float = 240.0) -> set[int]:
+    """Start b2d-collect, SIGKILL it once ``clips_first`` clips are complete and another one is being written.
+
+    Returns the processes the collection had started (all of them must then exit on their own).
+    """
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "b2d_data.cli.collect", *args],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + timeout
+    helpers: set[int] = set()
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            helpers |= _descendants(proc.pid)
+            if out.is_dir() and len(_clips(out)) >= clips_first:
+                partial = [p for p in out.glob(".*.tmp-*") if p.is_dir() and len(list(p.glob("anno/*.json.gz"))) >= 3]
+                if partial:
+                    break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the collection ended before it could be killed"
+        helpers |= _descendants(proc.pid)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return helpers
+
+
+def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path):
+    out = tmp_path / "data"
+    out.mkdir()
+    shutil.copytree(collection / "maps", out / "maps")  # the HD-map export is tested above; skip its 5 s here
+    args = _args(short_routes, out, "--encode-workers", "1")  # with an encoder process, which must die too
+    helpers = _kill_mid_collection(args, out)
+    assert len(_clips(out)) == 1 and _temporaries(out), "expected one clip and one half-written clip"
+    before = rl.read_run_log(out / rl.LOG_FILE)
+    assert len(rl.interrupted_routes(before)) == 1
+    _assert_all_exit(helpers)
+
+    assert main(args) == 2  # a used folder needs --resume
+    assert main([*args, "--resume"]) == 0
+
+    clips = _clips(out)
+    assert len(clips) == N
+    assert not _temporaries(out)
+    route_ids = [ClipName.parse(c.name).route_id for c in clips]
+    assert len(set(route_ids)) == N
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    finals = rl.final_records(records)
+    assert not rl.interrupted_routes(records)
+    assert sorted(r["clip"] for r in finals if r["status"] == "clip") == [c.name for c in clips]
+    assert len({r["route_id"] for r in finals}) == len(finals)  # one finished attempt per route
+
+    # Same seed, same routes: the resumed corpus holds the very same annotations as the uninterrupted one.
+    assert [c.name for c in clips] == [c.name for c in _clips(collection)]
+    for clip in clips:
+        mine = sorted((clip / "anno").glob("*.json.gz"))
+        reference = sorted((collection / clip.name / "anno").glob("*.json.gz"))
+        assert [p.name for p in mine] == [p.name for p in reference]
+        for a, b in zip(mine, reference):
+            assert read_anno(a) == read_anno(b), f"{clip.name}/{a.name} differs between the two runs"
+
+
+def test_user_errors_are_one_line_and_exit_2(short_routes, tmp_path, capsys, carla_maps_dir):
+    cases = [
+        ["--scenario", "Acident", "--out", str(tmp_path / "a")],
+        ["--scenario", "Accident", "--town", "nowhere", "--out", str(tmp_path / "b")],
+        ["--routes", str(tmp_path / "missing.xml"), "--out", str(tmp_path / "c")],
+        ["--routes", str(short_routes[1]), "--xodr", str(carla_maps_dir / "Town01.xodr"), "--out", str(tmp_path / "d")],
+    ]
+    bad_xml = tmp_path / "bad.xml"
+    bad_xml.write_text("<routes><route id='1' town='Town100'>")
+    cases.append(["--routes", str(bad_xml), "--out", str(tmp_path / "e")])
+    expected = ["Did you mean Accident", "unknown town preset", "route file not found", "Town100", "malformed XML"]
+    for argv, text in zip(cases, expected):
+        assert main([*argv, *TINY]) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("b2d-collect: error:") and text in err[0], err
+
+
+def test_run_log_skips_a_line_cut_by_a_crash(tmp_path):
+    log = rl.RunLog(tmp_path / rl.LOG_FILE)
+    log.append({"event": "start", "route_id": "1"})
+    with open(log.path, "ab") as f:
+        f.write(b'{"event": "attempt", "route_id": "1", "sta')  # killed mid-write
+    log.append({"event": "start", "route_id": "2"})
+    records = rl.read_run_log(log.path)
+    assert [r["route_id"] for r in records] == ["1", "2"]
+    assert rl.interrupted_routes(records) == ["1", "2"]
+
+
+def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection, short_routes, tmp_path):
+    out = tmp_path / "records"
+    assert main([*_args(short_routes, out), "--no-sensors", "--workers", "2"]) == 0
+    assert not _clips(out)
+    finals = rl.final_records(rl.read_run_log(out / rl.LOG_FILE))
+    assert len({r["pid"] for r in finals}) >= 1 and all(r["frames"] == 0 for r in finals)
+    reference = {r["route_id"]: r for r in rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))}
+    for r in finals:
+        ref = reference[r["route_id"]]
+        assert (r["status"], r["ticks"], r["score_route"], r["infractions"]) == (
+            ref["status"],
+            ref["ticks"],
+            ref["score_route"],
+            ref["infractions"],
+        )
+        assert (out / "results" / f"{r['clip']}.json").is_file()
+
+
+def test_ray_requested_without_ray_is_a_clear_error(short_routes, tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
+    assert main([*_args(short_routes, tmp_path / "r"), "--ray", "auto"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install" in err[0], err
+
+
+def test_resume_adopts_what_reached_the_disk_before_a_crash(tmp_path):
+    """A record + clip written just before a kill are adopted; a failed kept clip is moved; a lone success re-runs."""
+    from b2d_data.collection.job import CollectConfig, write_route_results
+    from b2d_data.collection.runner import reconcile
+    from b2d_data.format import leaderboard as lb
+
+    out = tmp_path / "data"
+
+    def finished(route_id: int, success: bool, clip_on_disk: bool) -> str:
+        name = f"Accident_Town100_Route{route_id}_Weather3"
+        record = lb.RouteRecord(
+            route_id=lb.record_route_id(route_id),
+            status="Completed" if success else "Failed",
+            town_name="Town100",
+            index=0,
+        )
+        record.extra["b2d_collect"] = {"seed": 11, "clip": name, "success": success}
+        write_route_results(out, name, record)
+        if clip_on_disk:
+            (out / name / "anno").mkdir(parents=True)
+            (out / name / "b2d_format.json").write_text("{}")
+        return name
+
+    adopted = finished(1, True, clip_on_disk=True)
+    kept_failed = finished(2, False, clip_on_disk=True)
+    lost = finished(3, True, clip_on_disk=False)
+    log = rl.RunLog(out / rl.LOG_FILE)
+    records = [{"event": "start", "route_id": str(i)} for i in (1, 2, 3)]
+    reconcile(out, records, CollectConfig(out=out, keep_failed=True), log)
+
+    finals = {r["route_id"]: r for r in rl.final_records(rl.read_run_log(log.path))}
+    assert set(finals) == {"1", "2"}  # route 3 has no clip: it is run again
+    assert finals["1"]["status"] == "clip" and finals["1"]["seed"] == 11 and (out / adopted).is_dir()
+    assert finals["2"]["status"] == "failed" and finals["2"]["clip_path"] == f"failed/{kept_failed}"
+    assert not (out / kept_failed).exists() and (out / "failed" / kept_failed).is_dir()
+    assert not (out / lost).exists()
+
+
+def _assert_all_exit(pids: set[int], timeout: float = 10.0) -> None:
+    assert pids, "the collection started no helper process"
+    deadline = time.monotonic() + timeout
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [p for p in pids if _alive(p)], "helper processes outlived the killed collection"
+
+
+def test_kill_9_with_worker_processes_leaves_no_orphan_and_resumes(short_routes, tmp_path):
+    out = tmp_path / "records"
+    args = _args(short_routes, out, "--workers", "2", "--no-sensors")
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "b2d_data.cli.collect", *args],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    helpers: set[int] = set()
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None:
+            helpers |= _descendants(proc.pid)
+            records = rl.read_run_log(out / rl.LOG_FILE)
+            if len([r for r in records if r.get("event") == "start"]) >= 2 and len(helpers) >= 3:
+                break
+            time.sleep(0.05)
+        time.sleep(1.0)  # both workers are inside their routes now
+        helpers |= _descendants(proc.pid)
+        assert proc.poll() is None, "the collection ended before it could be killed"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert not rl.final_records(rl.read_run_log(out / rl.LOG_FILE)), "killed too late: a route had finished"
+    _assert_all_exit(helpers)
+    assert main([*args, "--resume"]) == 0
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    finals = rl.final_records(records)
+    assert len([r for r in finals if r["status"] == "clip"]) == N
+    assert len({r["route_id"] for r in finals}) == len(finals)
+    assert not rl.interrupted_routes(records)

@@ -273,6 +273,9 @@ class RouteRunner:
                 sim.background.start(ego_id, list(dense.waypoints))
                 background_started = True
                 manager = self.scenario_manager_factory(ScenarioSetup(sim, sim.map, self.route, dense, ego_id, rng))
+                # Build (and trigger) what is due at the start before the first tick, so that the agent's first
+                # step already sees it (ParkingExit moves the ego into the parking lane at the route start).
+                manager.tick(sim.snapshot(), 0)
             except Exception:
                 log.exception("route %s: starting background traffic or scenarios failed", self.route.id)
                 failure = stop_reason = statistics.SIMULATION_CRASHED_FAILURE

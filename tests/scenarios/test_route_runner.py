@@ -188,7 +188,9 @@ def test_tick_limit_and_scenario_manager_wiring(town01, straight_route):
     # 41 world ticks: the 41st exceeds the limit before anything else runs (Bench2Drive's tick_count > 4000).
     assert result.ticks == 41 and result.duration_game == pytest.approx(2.05)
     assert result.record.status == "Failed - TickRuntime"
-    assert manager.ticks == 40 and manager.route_indices == sorted(manager.route_indices)
+    # The manager also ticks once on the spawn snapshot (index 0) before the first world tick: 1 + 40 calls.
+    assert manager.ticks == 41 and manager.route_indices == sorted(manager.route_indices)
+    assert manager.route_indices[0] == 0
     assert agent.hints_seen[0] == (ScenarioHint("Accident", 7, 7),)
     assert manager.cleaned_with is not None and manager.cleaned_with.frame == manager.setup.sim.snapshot().frame
     # The scenario timeout reported at cleanup lands in the record with its 0.7 factor.

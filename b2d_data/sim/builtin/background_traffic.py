@@ -16,7 +16,8 @@ Every vehicle is a TM-like car (``role_name="background"``, blueprints with ligh
 by :class:`~b2d_data.sim.builtin.lane_following.TrafficDriver`: IDM with a 10 m gap, the lane speed limit
 (capped at 90 km/h and by :meth:`set_max_speed`, slower in bends), no lane changes, a 0.1 m lane offset,
 stopping at red and yellow lights and at stop signs, first-come junction reservations in which other vehicles
-(the ego) near a junction hold every lane, so background traffic gives way to them. A road vehicle that drives
+(the ego) on a junction's lanes, or about to drive onto them, hold every lane, so background traffic gives way
+to them, and no entering a junction whose exit is full (don't block the box). A road vehicle that drives
 into a junction is "detached" from the ego's road and no longer held back by the radius ramp (LB2.0 hands such
 vehicles over to the junction too). Vehicles far behind, far away or stuck for 30 s (out of the ego's way)
 are removed (recycled). New vehicles enter rolling, no faster than lets them stop behind whatever is ahead.
@@ -123,6 +124,7 @@ class _RouteJunction:
     extend_exit: float = 0.0
     clear_junction: bool = False
     clear_ego_entry: bool = False
+    lane_keys: tuple[tuple[int, int, int], ...] = ()  # the route's lanes through it (road, section, lane)
 
 
 class BackgroundTrafficManager:
@@ -154,6 +156,7 @@ class BackgroundTrafficManager:
         self._speed_limits: dict[tuple[int, int, int], float] = {}
         self._parked: list[int] = []
         self._pending: list[Location] = []  # spawned since the last tick (not yet in the snapshot)
+        self._handed_in: set[int] = set()  # other vehicles handed to the arbiter as junction holders last tick
         self._started = False
         #: The driver's decision per vehicle at the last tick (control, acceleration, reason, leader).
         self.last_outputs: dict[int, DriverOutput] = {}
@@ -496,6 +499,7 @@ class BackgroundTrafficManager:
                 continue
             if not junction.active and entry_s - ego_s < s.junction_activation + s.junction_activation_time * ego.speed():
                 junction.active = True
+                self.driver.arbiter.learn_lanes(self._route[junction.entry_index:junction.exit_index])
                 self._create_junction_sources(junction)
                 self._apply_junction_clearing(snapshot, junction)
 
@@ -609,8 +613,8 @@ class BackgroundTrafficManager:
             initial = min(initial, self._max_speed)
         # never faster than what stops comfortably (3 m/s²) short of the 10 m gap behind whatever is ahead,
         # nor before the next junction (whose reservation it may not get)
-        free = self._free_distance(snapshot, place, yaw) - 10.0
         path.extend()
+        free = self._free_distance(snapshot, path) - 10.0
         junction = path.first_junction()
         if junction is not None:
             free = min(free, junction[1] * PATH_STEP - 5.0)
@@ -620,17 +624,21 @@ class BackgroundTrafficManager:
             self._world.set_target_velocity(vid, Location(initial * math.cos(rad), initial * math.sin(rad), 0.0))
         return vid
 
-    def _free_distance(self, snapshot: Snapshot, place: Location, yaw: float, reach: float = 80.0) -> float:
-        """Distance from a spawn point to the nearest vehicle or walker ahead of it in its lane (≤ reach)."""
-        c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+    def _free_distance(self, snapshot: Snapshot, path: LanePath) -> float:
+        """Distance along a new vehicle's lane to the nearest vehicle or walker on it (at most the path length).
+
+        Measured along the lane, not straight ahead: in a bend a straight probe misses the car standing in the
+        lane, and the newcomer would enter too fast to stop behind it.
+        """
+        xy, _, arc, width = path.arrays()
         points = [a.transform.location for a in snapshot.actors.values()
                   if a.kind in (ActorKind.VEHICLE, ActorKind.WALKER)] + self._pending[:-1]
-        best = reach
+        best = float(arc[-1])
         for loc in points:
-            dx, dy = loc.x - place.x, loc.y - place.y
-            ahead, across = dx * c + dy * s, -dx * s + dy * c
-            if 0.1 < ahead < best and abs(across) < 3.0:
-                best = ahead
+            d = np.hypot(xy[:, 0] - loc.x, xy[:, 1] - loc.y)
+            k = int(np.argmin(d))
+            if 0 < k and float(arc[k]) < best and d[k] < 0.5 * width[k] + 0.5:
+                best = float(arc[k])
         return best
 
     def _location(self, snapshot: Snapshot, vid: int) -> Location:
@@ -692,29 +700,50 @@ class BackgroundTrafficManager:
         return limit
 
     def _others_in_junctions(self, snapshot: Snapshot) -> dict[int, tuple[int, tuple[tuple[int, int, int], ...]]]:
-        """Other vehicles in (or about to enter) an active junction hold all its lanes for the arbiter.
+        """Other vehicles in (or about to enter) an active route junction hold lanes of it for the arbiter.
 
-        Their way through the junction is unknown (the ego is driven by the expert), so background vehicles
-        give way to them: TM-like yielding to the hero. Vehicles that another :class:`TrafficDriver` drives
-        with the same arbiter are left to it.
+        Background vehicles give way to them (TM-like yielding to the hero). The ego holds the route's lanes
+        through the junction (the expert follows the route), any other vehicle, or the ego off its route, every
+        lane: their way is unknown. Holding every lane for the ego would let traffic it waits for wait for it
+        in turn (e.g. an oncoming car held at the junction the ego stands in the exit of, whose queue keeps the
+        junction ahead of the ego full). Vehicles that another :class:`TrafficDriver` drives with the same arbiter
+        are left to it.
         """
         out = {}
         shared = self.driver.arbiter.holders
         for actor in snapshot.actors.values():
             if actor.kind is not ActorKind.VEHICLE or actor.id in self._vehicles or actor.parent_id is not None:
                 continue
-            if actor.id in shared and shared[actor.id][1] != (ANY_LANE,):
+            if actor.id in shared and actor.id not in self._handed_in:
                 continue
-            junction_id = self._junction_near(actor)
-            if junction_id is not None:
-                out[actor.id] = (junction_id, (ANY_LANE,))
+            junction = self._junction_near(actor)
+            if junction is None:
+                continue
+            keys: tuple[tuple[int, int, int], ...] = (ANY_LANE,)
+            if actor.id == self._ego_id and junction.lane_keys and self._near_route(actor.transform.location):
+                keys = junction.lane_keys
+            out[actor.id] = (junction.junction_id, keys)
+        self._handed_in = set(out)
         return out
 
-    def _junction_near(self, actor: Any) -> int | None:
-        """The active route junction an actor is inside, or drives into within ~1 s (at least 5 m away)."""
+    def _near_route(self, loc: Location, tolerance: float = 2.0) -> bool:
+        """Is a location within ``tolerance`` m of the route near the ego's route index?"""
+        lo, hi = max(0, self._ego_index - 10), min(len(self._route_xy), self._ego_index + 30)
+        if hi <= lo:
+            return False
+        d = np.hypot(self._route_xy[lo:hi, 0] - loc.x, self._route_xy[lo:hi, 1] - loc.y)
+        return float(d.min()) < tolerance
+
+    def _junction_near(self, actor: Any) -> _RouteJunction | None:
+        """The active route junction an actor is inside (its centre or front bumper on one of the junction's
+        lanes), or drives into within ~1 s (at least 5 m away)."""
         loc = actor.transform.location
         speed = actor.speed()
         yaw = math.radians(actor.transform.rotation.yaw)
+        front = actor.bounding_box.extent.x
+        probes = [0.0, front]
+        if speed > 0.5:
+            probes.append(max(5.0, speed * 1.0))
         for junction in self._junctions:
             if not junction.active:
                 continue
@@ -723,11 +752,15 @@ class BackgroundTrafficManager:
                 continue
             box = record.bounding_box
             margin = 1.0
-            ahead = max(5.0, speed * 1.0) if speed > 0.5 else 0.0
-            for probe in (0.0, ahead):
+            for probe in probes:
                 x, y = loc.x + math.cos(yaw) * probe, loc.y + math.sin(yaw) * probe
-                if abs(x - box.location.x) <= box.extent.x + margin and abs(y - box.location.y) <= box.extent.y + margin:
-                    return junction.junction_id
+                if abs(x - box.location.x) > box.extent.x + margin or abs(y - box.location.y) > box.extent.y + margin:
+                    continue
+                # the axis-aligned box of a skewed junction reaches far over its entry roads: a car waiting
+                # there (e.g. at a red light) must not hold the junction, so ask the lane under the probe
+                wp = self._map.get_waypoint(Location(x, y, loc.z))
+                if wp is not None and wp.is_junction and wp.junction_id == junction.junction_id:
+                    return junction
         return None
 
     # -- internals: geometry helpers ---------------------------------------------------------------------
@@ -853,6 +886,9 @@ def _route_junctions(route: Sequence[Waypoint]) -> list[_RouteJunction]:
                 current = _RouteJunction(wp.junction_id, i, i + 1)
                 out.append(current)
             current.exit_index = i + 1
+            key = (wp.road_id, wp.section_id, wp.lane_id)
+            if key not in current.lane_keys:
+                current.lane_keys += (key,)
         else:
             current = None
     return out

@@ -312,6 +312,8 @@ def _stop_line(owner_id: int, is_light: bool, wp: Any, ahead: float) -> StopLine
 # -- junction reservations --------------------------------------------------------------------------------
 
 LaneKey = tuple[int, int, int]
+#: A leader heading within 45° of the path counts as driving along it (a queue), not across it.
+_ALONG_COS = math.cos(math.radians(45.0))
 #: Two junction lanes conflict when their centre lines come this close (m): a wide car (2.2 m) plus what two
 #: vehicles may stray from their centre lines in a turn.
 CONFLICT_DISTANCE = 3.0
@@ -325,7 +327,8 @@ class JunctionArbiter:
     Lanes leaving from the same entry lane never conflict (their vehicles queue and IDM keeps them apart);
     any other pair whose centre lines come within :data:`CONFLICT_DISTANCE` does, and so does a lane whose
     centre line is unknown (e.g. :data:`ANY_LANE`, held by vehicles whose path nobody knows). Vehicles already
-    inside a junction always hold their lanes. Ties are broken by the tick a vehicle first asked, then by id.
+    inside a junction always hold their lanes. Requests are served in the order of the tick a vehicle first
+    asked (then by id), and none overtakes an earlier one it conflicts with.
     """
 
     def __init__(self) -> None:
@@ -336,26 +339,25 @@ class JunctionArbiter:
         self._asked: dict[int, int] = {}
 
     def learn(self, path: LanePath) -> None:
-        """Remember the centre lines of the junction lanes a path crosses completely (for the conflict test)."""
+        """Remember the whole centre lines (from the map) of the junction lanes on a path's next junction, and
+        the lane each one is entered from (for the conflict test)."""
         record = path.first_junction()
-        if record is None:
-            return
-        _, entry, exit_, keys = record
-        by_key: dict[LaneKey, list[tuple[float, float]]] = {}
-        for wp in path.waypoints[entry:exit_]:
-            by_key.setdefault((wp.road_id, wp.section_id, wp.lane_id), []).append(
-                (wp.transform.location.x, wp.transform.location.y))
-        complete = keys if exit_ < len(path.waypoints) else keys[:-1]  # the path may end inside the junction
-        before = path.waypoints[entry - 1] if entry > 0 else None
-        for n, key in enumerate(keys):
-            if n == 0 and before is not None:
-                self._entry_of.setdefault(key, (before.road_id, before.section_id, before.lane_id))
-            if key not in complete or (n == 0 and before is None):
-                continue  # a lane seen from its middle or cut by the path end is not its whole centre line
-            pts = np.asarray(by_key[key])
-            known = self._polylines.get(key)
-            if known is None or len(pts) > len(known):
-                self._polylines[key] = pts
+        if record is not None:
+            self.learn_lanes(path.waypoints[record[1]:record[2]])
+
+    def learn_lanes(self, waypoints: Sequence[Waypoint]) -> None:
+        """Remember the whole centre lines (from the map) of the junction lanes these waypoints lie on."""
+        for wp in waypoints:
+            if not wp.is_junction:
+                continue
+            key = (wp.road_id, wp.section_id, wp.lane_id)
+            if key in self._polylines:
+                continue
+            # the whole lane, not the part a path covers: a path ends 60 m ahead, so the lanes of a long
+            # junction would otherwise stay unknown and conflict with every other lane for good
+            self._polylines[key], before = _whole_lane(wp, key)
+            if before is not None:
+                self._entry_of.setdefault(key, before)
 
     def conflict(self, a: LaneKey, b: LaneKey) -> bool:
         """Do two junction lanes cross or merge (unknown centre lines count as conflicting)?"""
@@ -402,6 +404,7 @@ class JunctionArbiter:
         for vid in requests:
             self._asked.setdefault(vid, tick)
         granted = {vid for vid in requests if vid in self.holders}
+        waiting: list[tuple[int, tuple[LaneKey, ...]]] = []
         for vid in sorted(requests, key=lambda v: (self._asked[v], v)):
             if vid in granted:
                 continue
@@ -410,10 +413,32 @@ class JunctionArbiter:
                 other_junction == junction and any(self.conflict(k, o) for k in keys for o in other_keys)
                 for other, (other_junction, other_keys) in self.holders.items() if other != vid
             )
-            if not blocked:
+            # first come, first served: no overtaking an earlier request that waits for a conflicting lane, or
+            # a steady stream from one entry (whose lanes never conflict with each other) would starve the
+            # crossing entries for good
+            blocked = blocked or any(
+                other_junction == junction and any(self.conflict(k, o) for k in keys for o in other_keys)
+                for other_junction, other_keys in waiting
+            )
+            if blocked:
+                waiting.append((junction, keys))
+            else:
                 self.holders[vid] = (junction, keys)
                 granted.add(vid)
         return granted
+
+
+def _whole_lane(wp: Waypoint, key: LaneKey) -> tuple[np.ndarray, LaneKey | None]:
+    """Centre line (K, 2) of the lane ``key`` through ``wp``, and the non-junction lane it is entered from."""
+    back = [w for w in wp.previous_until_lane_start(PATH_STEP) if (w.road_id, w.section_id, w.lane_id) == key]
+    ahead = [w for w in wp.next_until_lane_end(PATH_STEP) if (w.road_id, w.section_id, w.lane_id) == key]
+    lane = back[::-1] + [wp] + ahead
+    pts = np.array([(w.transform.location.x, w.transform.location.y) for w in lane])
+    before = lane[0].previous(PATH_STEP)
+    entry = None
+    if len(before) == 1 and not before[0].is_junction:
+        entry = (before[0].road_id, before[0].section_id, before[0].lane_id)
+    return pts, entry
 
 
 @dataclass(frozen=True)
@@ -473,6 +498,7 @@ class TrafficDriver:
         self.arbiter = arbiter if arbiter is not None else JunctionArbiter()
         self._stop_lines: StopLines | None = None
         self._learned: dict[int, int] = {}
+        self._spoken_for: set[int] = set()  # agents and extra holders of the last call
 
     def stop_lines(self, snapshot: Snapshot) -> StopLines:
         """The stop-line index (built from the first snapshot: lights and signs never move)."""
@@ -485,8 +511,14 @@ class TrafficDriver:
         """Controls for every agent at this snapshot (agents missing from the snapshot are skipped)."""
         stops = self.stop_lines(snapshot)
         live = [a for a in agents if a.id in snapshot.actors]
+        # this call also speaks for the agents and extra holders of the last call: a vehicle destroyed while
+        # holding junction lanes, or an extra holder (the ego) that has left its junction, must lose its hold,
+        # or it would block those lanes for good
+        now = {a.id for a in agents} | set(extra_inside or {})
+        managed = sorted(now | self._spoken_for)
+        self._spoken_for = now
         if not live:
-            self.arbiter.update(snapshot.frame, dict(extra_inside or {}), {}, managed=[a.id for a in agents])
+            self.arbiter.update(snapshot.frame, dict(extra_inside or {}), {}, managed=managed)
             return {}
         for agent in live:
             agent.path.extend()
@@ -496,7 +528,7 @@ class TrafficDriver:
                 self._learned[agent.id] = agent.path.version
         actors = [snapshot.actors[a.id] for a in live]
         batch = _Batch(actors, live, self.LOOK_AHEAD_POINTS)
-        gaps, v_leads, leader_ids = _ObstacleTable(snapshot).leaders(batch, self.margin)
+        gaps, v_leads, leader_ids, lead_cos = _ObstacleTable(snapshot).leaders(batch, self.margin)
         steers = batch.pure_pursuit()
         bend_speeds = batch.curve_speed(self.idm.lateral_accel, self.idm.comfort_decel)
         inside: dict[int, tuple[int, tuple[LaneKey, ...]]] = dict(extra_inside or {})
@@ -506,14 +538,14 @@ class TrafficDriver:
             gap = None if agent.ignore_vehicles or not np.isfinite(gaps[i]) else float(gaps[i])
             accel, reason, junction = self._longitudinal(snapshot, actor, agent, stops, float(batch.s_self[i]),
                                                          gap, float(v_leads[i]), float(batch.speed[i]),
-                                                         float(bend_speeds[i]))
+                                                         float(bend_speeds[i]), bool(lead_cos[i] > _ALONG_COS))
             decided.append((accel, reason, junction))
             if junction is not None:
                 if junction.entry == 0 and agent.path.waypoints[0].is_junction:
                     inside[agent.id] = (junction.junction_id, junction.keys)
                 elif junction.wants:
                     requests[agent.id] = (junction.junction_id, junction.keys)
-        granted = self.arbiter.update(snapshot.frame, inside, requests, managed=[a.id for a in agents])
+        granted = self.arbiter.update(snapshot.frame, inside, requests, managed=managed)
         out: dict[int, DriverOutput] = {}
         for i, (agent, actor) in enumerate(zip(live, actors)):
             accel, reason, junction = decided[i]
@@ -532,7 +564,8 @@ class TrafficDriver:
     # -- internals ------------------------------------------------------------------------------------------
     def _longitudinal(self, snapshot: Snapshot, actor: ActorState, agent: DrivingAgent, stops: StopLines,
                       s_self: float, gap: float | None, v_lead: float, speed: float,
-                      bend_speed: float = math.inf) -> tuple[float, str, _JunctionAhead | None]:
+                      bend_speed: float = math.inf,
+                      lead_along: bool = True) -> tuple[float, str, _JunctionAhead | None]:
         v = max(0.0, speed)
         p = self.idm
         _, _, arc, width = agent.path.arrays()
@@ -550,10 +583,20 @@ class TrafficDriver:
             a = idm_accel(v, max(v0, 0.1), gap, v_lead, p)
             if a < accel:
                 accel, reason = a, "leader"
+        record = agent.path.first_junction()
         # lights and stop signs on the path
         if not agent.ignore_signals:
             for owner, idx in sorted(agent.path.stop_marks.items(), key=lambda kv: kv[1]):
-                dist = float(arc[idx] + stops.ahead.get(owner, 0.0) - s_self) - half_len
+                line = float(arc[idx] + stops.ahead.get(owner, 0.0))
+                if record is not None and idx < record[2]:  # it guards the next junction
+                    if record[1] > 0:
+                        # stop at its entry at the latest: some maps put stop lines inside the junction (e.g. the
+                        # stop signs of Town07), where a waiting car would stand across the other entries' lanes
+                        # and, not having asked for its own, drive in unreserved
+                        line = min(line, float(arc[record[1]]))
+                    elif agent.path.waypoints[0].is_junction:
+                        continue  # already in it: committed, like TM once past the trigger volume
+                dist = line - s_self - half_len
                 if dist < -half_len:
                     continue  # already across
                 must_stop = False
@@ -577,19 +620,28 @@ class TrafficDriver:
             reason = "stopped"  # ordered to stand still, whatever else is in the way
         # the next junction: ask for it when close and free to go, or wait at its entry
         junction = None
-        record = agent.path.first_junction()
         if record is not None:
             jid, entry, exit_, keys = record
             dist_entry = float(arc[entry] - s_self) - half_len if entry < len(arc) else math.inf
             close = dist_entry < max(12.0, v * v / (2.0 * p.comfort_decel) + 8.0)
             blocked_by_signal = reason in ("light", "stop_sign", "stopped")
-            # don't block the box: enter only if the car can stop behind a slow leader past the junction exit
+            # don't block the box: enter only if the car can stop behind a slow leader past the junction exit;
+            # otherwise wait at the entry (merely not asking the arbiter would let it roll in unreserved and
+            # stand across the junction, where it can close a gridlock loop through the lanes it blocks). A car
+            # crossing the path is no queue on the exit: the arbiter keeps apart vehicles that cross
             room = True
-            if gap is not None and exit_ < len(arc) and v_lead < 2.0:
+            if gap is not None and exit_ < len(arc) and v_lead < 2.0 and lead_along:
                 dist_exit = float(arc[exit_] - s_self) - half_len
                 room = gap - p.min_gap >= dist_exit + 2.0 * half_len
-            wants = close and room and not blocked_by_signal and not agent.stop_before_junction
+            # a car that can no longer stop comfortably before the entry goes on (with its reservation)
+            can_stop = dist_entry > v * v / (2.0 * p.comfort_decel)
+            exit_blocked = not room and entry > 0 and can_stop
+            wants = close and not exit_blocked and not blocked_by_signal and not agent.stop_before_junction
             junction = _JunctionAhead(jid, entry, exit_, keys, wants, max(dist_entry, 0.0))
+            if close and exit_blocked:
+                a = idm_accel(v, max(v0, 0.1), max(dist_entry, 0.0), 0.0, p, s0=p.stop_line_gap)
+                if a < accel:
+                    accel, reason = a, "exit_blocked"
             if agent.stop_before_junction and entry > 0:
                 a = idm_accel(v, max(v0, 0.1), max(dist_entry, 0.0), 0.0, p, s0=p.stop_line_gap)
                 if a < accel:
@@ -691,21 +743,23 @@ class _ObstacleTable:
         self.ids = np.asarray(ids, dtype=np.int64)
         self.a = np.asarray(rows, dtype=np.float64).reshape(-1, 7)
 
-    def leaders(self, batch: _Batch, margin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(bumper gap, leader speed along the path, leader id or −1) per vehicle; gap is inf on a clear path."""
+    def leaders(self, batch: _Batch, margin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(bumper gap, leader speed along the path, leader id or −1, cosine between the leader's heading and
+        the path's there) per vehicle; gap is inf on a clear path."""
         n = batch.pos.shape[0]
         gaps = np.full(n, np.inf)
         v_lead = np.zeros(n)
         lead_id = np.full(n, -1, dtype=np.int64)
+        lead_cos = np.ones(n)
         if self.a.shape[0] == 0:
-            return gaps, v_lead, lead_id
+            return gaps, v_lead, lead_id, lead_cos
         a = self.a
         reach = (batch.count - 1).astype(float) + 8.0
         d = np.hypot(batch.pos[:, None, 0] - a[None, :, 0], batch.pos[:, None, 1] - a[None, :, 1])
         near = (d < reach[:, None]) & (batch.ids[:, None] != self.ids[None, :]) & (batch.count[:, None] >= 2)
         ia, io = np.nonzero(near)
         if ia.size == 0:
-            return gaps, v_lead, lead_id
+            return gaps, v_lead, lead_id, lead_cos
         o = a[io]
         dx = o[:, None, 0] - batch.xy[ia, :, 0]
         dy = o[:, None, 1] - batch.xy[ia, :, 1]
@@ -735,7 +789,8 @@ class _ObstacleTable:
         gaps[ia[best]] = gap[best]
         v_lead[ia[best]] = o[best, 5] * tx[best] + o[best, 6] * ty[best]
         lead_id[ia[best]] = self.ids[io[best]]
-        return gaps, v_lead, lead_id
+        lead_cos[ia[best]] = np.cos(rel[best])
+        return gaps, v_lead, lead_id, lead_cos
 
 
 def _geometry(type_id: str) -> blueprints.BicycleGeometry:

@@ -71,3 +71,45 @@ def test_arbiter_serialises_crossing_lanes_and_not_a_queue():
     assert arb.update(4, {100: (5, (ANY_LANE,))}, {10: (5, (west_east,))}, managed=[8, 10]) == set()
     # ... but not those of another junction
     assert arb.update(5, {100: (6, (ANY_LANE,))}, {10: (5, (west_east,))}, managed=[10]) == {10}
+
+
+def test_arbiter_serves_conflicting_requests_first_come_first_served():
+    arb = JunctionArbiter()
+    # north-south along x = 0 (north entry); west-east along y = 0 and a west-to-south turn that runs down x = 0
+    # (both from the west entry: they never conflict with each other, but the turn crosses the north-south lane)
+    north_south, west_east, west_turn = (1, 0, 1), (2, 0, 1), (3, 0, 1)
+    arb._polylines[north_south] = _lane([(0, y) for y in range(-10, 11)])
+    arb._polylines[west_east] = _lane([(x, 0) for x in range(-10, 11)])
+    arb._polylines[west_turn] = _lane([(x, 0) for x in range(-10, 0)] + [(0, y) for y in range(11)])
+    arb._entry_of.update({north_south: (10, 0, -1), west_east: (20, 0, -1), west_turn: (20, 0, -1)})
+    assert arb.conflict(west_turn, north_south) and not arb.conflict(west_turn, west_east)
+    # 1 crosses on west-east; 2 (north) asks at tick 1 and must wait for it
+    assert arb.update(1, {1: (5, (west_east,))}, {2: (5, (north_south,))}) == set()
+    # 3 comes from the west behind 1 at tick 2: 1's lane does not stop it, but 2 asked first for a lane 3 crosses
+    assert arb.update(2, {1: (5, (west_east,))}, {2: (5, (north_south,)), 3: (5, (west_turn,))}) == set()
+    # 1 has left: 2 goes first, 3 waits for 2
+    assert arb.update(3, {}, {2: (5, (north_south,)), 3: (5, (west_turn,))}) == {2}
+    assert arb.update(4, {2: (5, (north_south,))}, {3: (5, (west_turn,))}) == set()
+    assert arb.update(5, {}, {3: (5, (west_turn,))}) == {3}
+
+
+def test_arbiter_knows_the_whole_lanes_of_a_junction_longer_than_a_path(carla_maps_dir):
+    from b2d_data.format.transform import Location
+    from b2d_data.maps import load_opendrive
+    from b2d_data.sim.builtin.lane_following import LanePath
+
+    town = load_opendrive(carla_maps_dir / "Town06.xodr")
+    # Town06 junction 1050: five parallel lanes (road 1083, lanes −3…−7, 3.5 m apart) straight through a 71 m
+    # junction from x = 480; a path 20 m before it reaches only 40 m into it
+    arb = JunctionArbiter()
+    keys = []
+    for y in (45.2, 41.7):  # lanes −5 and −4
+        path = LanePath(town.get_waypoint(Location(460.0, y, 0.0)), chooser=lambda options: 0)
+        path.extend()
+        junction_id, entry, exit_, lanes = path.first_junction()
+        assert junction_id == 1050 and exit_ == len(path.waypoints)  # the path ends inside the junction
+        arb.learn(path)
+        keys.append(lanes[0])
+    assert [k[0] for k in keys] == [1083, 1083]
+    assert len(arb._polylines[keys[0]]) >= 70  # the whole centre line, from the map
+    assert not arb.conflict(keys[0], keys[1])  # 3.5 m apart all along: side by side, they never meet

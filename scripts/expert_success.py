@@ -27,7 +27,8 @@ from collections import Counter
 from pathlib import Path
 
 from b2d_data.collection.job import CollectConfig, JobResult
-from b2d_data.collection.runner import RouteTask, route_seed, run_tasks
+from b2d_data.collection.plan import RouteTask, route_seed
+from b2d_data.collection.runner import run_tasks
 from b2d_data.collection.towns import TownSource, load_map, xodr_in_folder
 
 #: The twelve scenario types of issue 4.

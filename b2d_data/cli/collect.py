@@ -178,7 +178,8 @@ def _stop_on_sigterm() -> object | None:
 
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
-    from b2d_data.collection.runner import CollectError, Progress, collect, implemented_scenarios, summary_table
+    from b2d_data.collection.plan import CollectError, implemented_scenarios
+    from b2d_data.collection.runner import Progress, collect, summary_table
     from b2d_data.collection.towns import TownError
     from b2d_data.format.errors import B2DFormatError
 

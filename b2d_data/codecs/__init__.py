@@ -3,6 +3,7 @@
 Decoders take a path or the encoded bytes and raise ``b2d_data.format.errors.B2DFormatError`` naming the file.
 """
 
+from b2d_data.codecs import layout
 from b2d_data.codecs.anno_json import (
     AnnoSchemaError,
     anno_text,
@@ -42,7 +43,6 @@ from b2d_data.codecs.labels_png import (
     write_instance_png,
     write_semantic_png,
 )
-from b2d_data.codecs import layout
 from b2d_data.codecs.laz import LAZ_SCALE, encode_laz, read_laz, write_laz
 from b2d_data.codecs.radar_h5 import RADAR_COLUMNS, RADAR_DATASETS, encode_radar, read_radar, write_radar
 

@@ -6,18 +6,8 @@ route into one clip; ``DataAgent`` turns a recorded tick into a ``FrameRecord``.
 
 from b2d_data.collection.data_agent import DataAgent
 from b2d_data.collection.job import CollectConfig, JobResult, run_route_job
-from b2d_data.collection.runner import (
-    CollectError,
-    CollectionPlan,
-    CollectSummary,
-    Progress,
-    RouteTask,
-    ScenarioSummary,
-    collect,
-    plan_collection,
-    route_seed,
-    summary_table,
-)
+from b2d_data.collection.plan import CollectError, CollectionPlan, RouteTask, plan_collection, route_seed
+from b2d_data.collection.runner import CollectSummary, Progress, ScenarioSummary, collect, summary_table
 from b2d_data.collection.towns import TownError, TownSource
 
 __all__ = [

@@ -187,8 +187,9 @@ def _trigger_fields(transform: Transform, trigger: BoundingBox, level: BoundingB
     }
 
 
-def traffic_light_box(world_map: Map, ego: ActorState, light: TrafficLightInfo, actor: ActorState | None,
-                      affects_ego: bool) -> dict:
+def traffic_light_box(
+    world_map: Map, ego: ActorState, light: TrafficLightInfo, actor: ActorState | None, affects_ego: bool
+) -> dict:
     """A ``traffic_light`` entry; pose fields come from the light's level bounding box."""
     level = light.level_bbox
     road_id, lane_id, section_id = _waypoint_ids(world_map, level.location)
@@ -212,8 +213,9 @@ def traffic_light_box(world_map: Map, ego: ActorState, light: TrafficLightInfo, 
     }
 
 
-def trigger_sign_box(world_map: Map, ego: ActorState, sign: TrafficSignInfo, actor: ActorState | None,
-                     affects_ego: bool) -> dict:
+def trigger_sign_box(
+    world_map: Map, ego: ActorState, sign: TrafficSignInfo, actor: ActorState | None, affects_ego: bool
+) -> dict:
     """A ``traffic_sign`` entry with a trigger volume (stop, yield, speed limit)."""
     level = sign.level_bbox
     road_id, lane_id, section_id = _waypoint_ids(world_map, level.location)
@@ -273,8 +275,9 @@ def _trigger_hits_route(transform: Transform, trigger: BoundingBox, route_ahead:
     return bool(np.any((np.abs(lx) <= ex) & (np.abs(ly) <= ey)))
 
 
-def most_affecting(ego: ActorState, candidates: Sequence[tuple[int, Transform, BoundingBox]],
-                   route_ahead: np.ndarray) -> int | None:
+def most_affecting(
+    ego: ActorState, candidates: Sequence[tuple[int, Transform, BoundingBox]], route_ahead: np.ndarray
+) -> int | None:
     """Id of the closest light/sign ahead whose trigger volume covers one of the next route points."""
     best: tuple[float, int] | None = None
     for actor_id, transform, trigger in candidates:
@@ -287,8 +290,9 @@ def most_affecting(ego: ActorState, candidates: Sequence[tuple[int, Transform, B
     return None if best is None else best[1]
 
 
-def nearest_prop_ahead(ego: ActorState, props: Sequence[ActorState], route_ahead: np.ndarray,
-                       lane_half_width: float = 3.5) -> int | None:
+def nearest_prop_ahead(
+    ego: ActorState, props: Sequence[ActorState], route_ahead: np.ndarray, lane_half_width: float = 3.5
+) -> int | None:
     """The nearest sign prop ahead that stands within ``lane_half_width`` of the upcoming route."""
     best: tuple[float, int] | None = None
     for prop in props:
@@ -303,8 +307,14 @@ def nearest_prop_ahead(ego: ActorState, props: Sequence[ActorState], route_ahead
     return None if best is None else best[1]
 
 
-def bounding_boxes(world_map: Map, snapshot: Snapshot, ego: ActorState, points_ego: np.ndarray | None,
-                   route_ahead: np.ndarray, radius: float = CAPTURE_RADIUS) -> list[dict]:
+def bounding_boxes(
+    world_map: Map,
+    snapshot: Snapshot,
+    ego: ActorState,
+    points_ego: np.ndarray | None,
+    route_ahead: np.ndarray,
+    radius: float = CAPTURE_RADIUS,
+) -> list[dict]:
     """All box entries of a frame, in Bench2Drive's order: ego, vehicles, static vehicles, walkers, lights, signs."""
     near = [
         a for a in snapshot.actors.values()
@@ -351,8 +361,9 @@ def _camera_entry(spec: CameraSpec, world: Transform, width: int, height: int) -
     }
 
 
-def sensor_calibrations(ego: ActorState, config: RigConfig,
-                        sensor_transforms: Mapping[str, Transform] | None = None) -> dict:
+def sensor_calibrations(
+    ego: ActorState, config: RigConfig, sensor_transforms: Mapping[str, Transform] | None = None
+) -> dict:
     """The ``sensors`` dict: every camera (incl. TOP_DOWN), radar and the LiDAR, in Bench2Drive's order.
 
     World poses come from the sensors' reported transforms when given, else from the ego pose and the mount.
@@ -366,8 +377,11 @@ def sensor_calibrations(ego: ActorState, config: RigConfig,
 
     out: dict[str, dict] = {}
     for spec in ALL_CAMERAS:
-        w, h = (config.top_down_width, config.top_down_height) if spec.sensor_id == "TOP_DOWN" else (
-            config.width, config.height)
+        w, h = (
+            (config.top_down_width, config.top_down_height)
+            if spec.sensor_id == "TOP_DOWN"
+            else (config.width, config.height)
+        )
         out[spec.sensor_id] = _camera_entry(spec, world_pose(spec.sensor_id, spec.mount), w, h)
     for radar in RADARS_V004 if config.radar_v004_mounts else RADARS_V0:
         pose = world_pose(radar.sensor_id, radar.mount)
@@ -402,9 +416,18 @@ class PlannerFields:
     next_command: int
 
 
-def build_annotation(world_map: Map, snapshot: Snapshot, ego: ActorState, sensors: SensorData,
-                     config: RigConfig, plan: PlannerFields, gnss_xy: tuple[float, float], should_brake: bool,
-                     only_ap_brake: bool, route_ahead: np.ndarray) -> dict:
+def build_annotation(
+    world_map: Map,
+    snapshot: Snapshot,
+    ego: ActorState,
+    sensors: SensorData,
+    config: RigConfig,
+    plan: PlannerFields,
+    gnss_xy: tuple[float, float],
+    should_brake: bool,
+    only_ap_brake: bool,
+    route_ahead: np.ndarray,
+) -> dict:
     """The complete annotation dict of one frame, keys in Bench2Drive's order."""
     control = ego.control if isinstance(ego.control, VehicleControl) else VehicleControl()
     imu = sensors.imu

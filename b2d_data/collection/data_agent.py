@@ -42,8 +42,9 @@ class DataAgent:
         self._route_index += offset
         return self._route_index
 
-    def make_record(self, index: int, snapshot: Snapshot, sensors: SensorData, ego_id: int,
-                    expert_state: Any = None) -> FrameRecord:
+    def make_record(
+        self, index: int, snapshot: Snapshot, sensors: SensorData, ego_id: int, expert_state: Any = None
+    ) -> FrameRecord:
         """The FrameRecord of frame ``index`` (consecutive from 0)."""
         ego = snapshot.actors.get(ego_id)
         if ego is None:
@@ -61,7 +62,15 @@ class DataAgent:
         should_brake = bool(getattr(expert_state, "should_brake", False))
         only_ap_brake = bool(getattr(expert_state, "only_ap_brake", False))
         anno = build_annotation(
-            self.map, snapshot, ego, sensors, self.config, plan, (gnss.x, gnss.y), should_brake, only_ap_brake,
+            self.map,
+            snapshot,
+            ego,
+            sensors,
+            self.config,
+            plan,
+            (gnss.x, gnss.y),
+            should_brake,
+            only_ap_brake,
             route_ahead,
         )
         return FrameRecord(

@@ -61,7 +61,7 @@ class RayBackend:
 
     def wait(self) -> list[tuple[Any, JobResult]]:
         """Results of the tasks that finished (a lost worker becomes an error result)."""
-        from b2d_data.collection.runner import error_result
+        from b2d_data.collection.backends import error_result
 
         ready, _ = self._ray.wait(list(self._refs), num_returns=1)
         out = []

@@ -29,8 +29,9 @@ class RoutePoint:
     command: RoadOption
 
 
-def downsample_route(points: Sequence[tuple[float, float]], commands: Sequence[RoadOption],
-                     max_gap: float = 50.0) -> list[int]:
+def downsample_route(
+    points: Sequence[tuple[float, float]], commands: Sequence[RoadOption], max_gap: float = 50.0
+) -> list[int]:
     """Indices of the sparse route: the first and last point, each RoadOption change, and one every ``max_gap`` m."""
     if not points:
         return []

@@ -329,8 +329,8 @@ def test_ray_requested_without_ray_is_a_clear_error(short_routes, tmp_path, caps
 
 def test_resume_adopts_what_reached_the_disk_before_a_crash(tmp_path):
     """A record + clip written just before a kill are adopted; a failed kept clip is moved; a lone success re-runs."""
+    from b2d_data.collection.corpus import reconcile
     from b2d_data.collection.job import CollectConfig, write_route_results
-    from b2d_data.collection.runner import reconcile
     from b2d_data.format import leaderboard as lb
 
     out = tmp_path / "data"

@@ -19,7 +19,6 @@ from b2d_data.expert.forecasting import (
 )
 from b2d_data.expert.hazard_heuristic import segments_cross, vehicle_hazard, walker_hazard
 from b2d_data.expert.lights_and_signs import StopSignTracker, stop_sign_centre
-from b2d_data.sim.traffic_rules import inside_stop_box
 from b2d_data.expert.obb import OrientedBox, boxes_overlap
 from b2d_data.expert.obstacle_scenarios import is_overtaking_path_clear, min_time_for_distance
 from b2d_data.expert.route_processing import light_governs_mask, resample, route_headings
@@ -27,6 +26,7 @@ from b2d_data.expert.route_shifting import extend_shift, shift_route_smoothly, s
 from b2d_data.format.road_option import RoadOption
 from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
 from b2d_data.sim.api import TrafficLightInfo, TrafficLightState, TrafficSignInfo, VehicleControl
+from b2d_data.sim.traffic_rules import inside_stop_box
 
 CFG = ExpertConfig()
 

@@ -7,7 +7,6 @@ import numpy as np
 from b2d_data.format.rig import CAMERAS, camera
 from b2d_data.format.transform import BoundingBox, Location
 from b2d_data.format.weather import WeatherParameters
-
 from b2d_data.viz.montage import lidar_bev, make_montage, project_boxes, render_town_montage
 
 

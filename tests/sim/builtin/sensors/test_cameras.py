@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from b2d_data.format.rig import TOP_DOWN, camera
-from b2d_data.sim.builtin.sensors.renderer import CameraView
 from b2d_data.sim.builtin.sensors.lighting import Lighting
+from b2d_data.sim.builtin.sensors.renderer import CameraView
 from b2d_data.sim.builtin.sensors.synthetic import actor_state, box_prop, snapshot_of
 
 BOX_ID = 77

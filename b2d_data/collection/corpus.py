@@ -1,0 +1,204 @@
+"""The state of a corpus folder between collections: the lock, the fixed settings, crashed writers' temporaries,
+and the reconciliation of the run log with what reached the disk before a crash.
+
+Crash safety: clips appear atomically (the writer renames a finished temporary folder); on ``resume`` stale
+temporaries are removed, the run log and the files on disk are reconciled (a clip or a route record that reached
+the disk just before a crash is adopted rather than run again) and every route with a finished attempt is skipped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import logging
+import os
+import re
+import shutil
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from b2d_data.collection import run_log as rl
+from b2d_data.collection.job import (
+    FAILED_DIR,
+    RESULTS_DIR,
+    STATUS_CLIP,
+    STATUS_FAILED,
+    CollectConfig,
+    JobResult,
+    move_to_failed,
+    process_alive,
+)
+from b2d_data.collection.plan import FIXED_SETTINGS, PLANNED_ROUTES_DIR, CollectError
+from b2d_data.collection.towns import (
+    TOWNS_DIR,
+)
+from b2d_data.format import leaderboard as lb
+from b2d_data.format.errors import B2DFormatError
+from b2d_data.format.names import ClipName, ClipNameError
+from b2d_data.format.version import FORMAT_FILE
+
+log = logging.getLogger(__name__)
+
+SETTINGS_FILE = "collect.json"
+LOCK_FILE = ".b2d_collect.lock"
+#: Seconds a starting collection waits for the writers of a killed one to exit.
+LIVE_WRITER_WAIT = 10.0
+#: Writers' temporaries: ``.<name>.tmp-<pid>-<hex>`` (clip_writer.py names them so).
+_TEMP_RE = re.compile(r"^\.(?P<name>.+)\.(?:tmp|old)-(?P<pid>\d+)-[0-9a-f]+$")
+
+
+@contextlib.contextmanager
+def corpus_lock(out: Path) -> Iterator[None]:
+    """Hold ``<out>/.b2d_collect.lock`` so that two collections never write one folder (released on any exit)."""
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / LOCK_FILE, "a+") as f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise CollectError(f"another b2d-collect is writing {out} (it holds {out / LOCK_FILE})") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+
+
+def check_settings(out: Path, settings: dict[str, Any], resume: bool) -> None:
+    path = out / SETTINGS_FILE
+    if resume and path.is_file():
+        try:
+            previous = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise CollectError(f"{path} is unreadable ({exc}); cannot check that the resume matches") from None
+        changed = [k for k in FIXED_SETTINGS if k in previous and previous[k] != settings.get(k)]
+        if changed:
+            detail = "; ".join(f"{k}: was {previous[k]!r}, now {settings.get(k)!r}" for k in changed)
+            raise CollectError(f"--resume with other settings than the collection in {out}: {detail}")
+        return
+    temp = path.with_name(f".{path.name}.tmp-{os.getpid()}-000000")
+    temp.write_text(json.dumps(settings, indent=2), encoding="utf-8")
+    os.replace(temp, path)
+
+
+def remove_temporaries(out: Path) -> list[Path]:
+    """Remove what crashed writers left in the corpus (clip, map, town, record and route-list temporaries)."""
+    from b2d_data.writers import remove_stale_temporaries
+
+    removed: list[Path] = []
+    for folder in (out, out / TOWNS_DIR, out / RESULTS_DIR, out / FAILED_DIR, out / PLANNED_ROUTES_DIR):
+        removed += remove_stale_temporaries(folder)
+        # The writers' rule keeps a zombie's temporaries (a killed worker nobody reaped); they are dead too.
+        for sub in (folder, folder / "maps"):
+            for entry in sorted(sub.iterdir()) if sub.is_dir() else []:
+                match = _TEMP_RE.match(entry.name)
+                if match is None or process_alive(int(match["pid"])):
+                    continue
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry, ignore_errors=True)
+                else:
+                    entry.unlink(missing_ok=True)
+                removed.append(entry)
+    return removed
+
+
+def _live_temporaries(out: Path) -> list[tuple[Path, int]]:
+    """Clip temporaries in the corpus whose writing process is still alive."""
+    found = []
+    if out.is_dir():
+        for entry in out.iterdir():
+            match = _TEMP_RE.match(entry.name)
+            if match is not None and process_alive(int(match["pid"])):
+                found.append((entry, int(match["pid"])))
+    return found
+
+
+def _clips_on_disk(out: Path) -> dict[str, Path]:
+    """Complete clips at the top of the corpus, keyed by route id."""
+    found: dict[str, Path] = {}
+    if not out.is_dir():
+        return found
+    for entry in sorted(out.iterdir()):
+        if entry.name.startswith(".") or not entry.is_dir() or not (entry / FORMAT_FILE).is_file():
+            continue
+        try:
+            name = ClipName.parse(entry.name)
+        except ClipNameError:
+            continue
+        found[str(name.route_id)] = entry
+    return found
+
+
+def _recovered(path: Path) -> JobResult | None:
+    """A run-log record rebuilt from a route's result file written just before a crash."""
+    try:
+        results = lb.read_results(path)
+        name = ClipName.parse(path.stem)
+    except (B2DFormatError, ClipNameError, OSError):
+        return None
+    if not results.records:
+        return None
+    record = results.records[0]
+    extra = record.extra.get("b2d_collect")
+    if not isinstance(extra, dict):
+        return None  # the record of a job that crashed: no verdict on the route, run it again
+    success = bool(extra.get("success", record.success))
+    kinds = {k: len(v) for k, v in record.infractions.items() if v}
+    return JobResult(
+        route_id=str(name.route_id), scenario=name.xml_type, town=name.town, weather_id=name.weather_id,
+        seed=int(extra.get("seed", 0)), status=STATUS_CLIP if success else STATUS_FAILED, success=success,
+        clip=str(name), route_status=record.status, infractions=kinds,
+        score_composed=float(record.scores.score_composed), score_route=float(record.scores.score_route),
+        duration_game=float(record.meta.duration_game), duration=float(record.meta.duration_system),
+        reason="" if success else record.status, note="recovered from results/ after an interruption",
+    )  # fmt: skip
+
+
+def reconcile(out: Path, records: list[dict[str, Any]], config: CollectConfig, run_log: rl.RunLog) -> None:
+    """Adopt what reached the disk before a crash but not the run log: clips and route records."""
+    finished = {str(r.get("route_id")) for r in rl.final_records(records)}
+    clips = _clips_on_disk(out)
+    results_dir = out / RESULTS_DIR
+    for path in sorted(results_dir.glob("*.json")) if results_dir.is_dir() else []:
+        recovered = _recovered(path)
+        if recovered is None or recovered.route_id in finished:
+            continue
+        clip_dir = clips.get(recovered.route_id)
+        if recovered.success:
+            if config.sensors and clip_dir is None:
+                continue  # killed between the record and the clip: run the route again
+            recovered.clip_path = clip_dir.name if clip_dir is not None else None
+        elif clip_dir is not None:
+            # Killed between closing a failed clip and moving it (keep_failed): finish the move.
+            recovered.clip_path = move_to_failed(out, clip_dir.name)
+        log.info("adopting the finished attempt of route %s from %s", recovered.route_id, path)
+        run_log.append(recovered.to_record())
+        records.append(recovered.to_record())
+        finished.add(recovered.route_id)
+    for route_id, clip_dir in clips.items():
+        if route_id not in finished:
+            # A complete clip without any record cannot be vouched for: keep it aside, never count it.
+            log.warning("clip %s has no route record; moving it to %s/", clip_dir.name, FAILED_DIR)
+            move_to_failed(out, clip_dir.name)
+
+
+def prepare_corpus(out: Path, config: CollectConfig) -> None:
+    """Refuse to reuse a collection folder without ``resume``; remove what dead writers left behind."""
+    log_path = out / rl.LOG_FILE
+    if log_path.exists() and not config.resume:
+        raise CollectError(
+            f"{out} already holds a collection ({rl.LOG_FILE}); pass --resume to continue it, or choose another --out"
+        )
+    # Leftovers of dead processes only (the lock keeps other collections out; live writers' files are kept).
+    removed = remove_temporaries(out)
+    # Workers of a killed collection exit within a second (exit_with_parent); never run beside one.
+    deadline = time.monotonic() + LIVE_WRITER_WAIT
+    while (live := _live_temporaries(out)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+        removed += remove_temporaries(out)
+    if live:
+        pids = ", ".join(sorted({str(pid) for _, pid in live}))
+        raise CollectError(f"process(es) {pids} still write into {out} ({live[0][0].name}); stop them first")
+    if removed:
+        log.info("removed %d stale temporary file(s)/folder(s)", len(removed))

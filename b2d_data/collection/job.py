@@ -36,6 +36,7 @@ from b2d_data.format.names import ClipName, canonical_clip_prefix
 from b2d_data.format.scenario_types import NO_SCENARIO
 from b2d_data.format.version import DEFAULT_FORMAT, FormatVersion
 from b2d_data.format.weather import PRESETS, WeatherParameters, weather_id_of
+from b2d_data.scenarios.framework import ScenarioSetupError
 from b2d_data.scenarios.route_xml import Route
 from b2d_data.sim.api import RigConfig
 
@@ -331,10 +332,6 @@ def _counted_collision(snapshot: Any, ego_id: int) -> bool:
     )
 
 
-class ScenarioSetupError(RuntimeError):
-    """A route that could not run with all of its scenarios."""
-
-
 class _StrictScenarios:
     """The route runner's default scenario manager, refusing to drop any of the route's scenarios.
 
@@ -468,6 +465,8 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
         result.ticks = run.ticks
         result.duration_game = float(run.duration_game)
         result.reason = "" if success else _reason_of(record) if not run.success else "clip dropped early"
+        if run.detail:
+            result.reason = f"{result.reason}: {run.detail}"
         result.timings["setup"] = round(t_setup, 3)
         if sink is not None:
             result.timings.update(

@@ -25,6 +25,7 @@ from b2d_data.format.rig import EGO_TYPE_ID
 from b2d_data.format.transform import Location, Transform
 from b2d_data.scenarios import statistics
 from b2d_data.scenarios.criteria import CriteriaResult, Infraction, RouteCriteria
+from b2d_data.scenarios.framework import ScenarioError
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.sim.api import FIXED_DELTA_SECONDS, ActorSpec, ScenarioHint, Simulator, Snapshot, VehicleControl
 
@@ -183,6 +184,8 @@ class RouteResult:
     #: Why the loop ended: ``completed``, a failure message (``TickRuntime``, ``Agent crashed``, ...).
     stop_reason: str = ""
     events: tuple[Infraction, ...] = field(default_factory=tuple)
+    #: What went wrong when a scenario could not be set up (empty otherwise).
+    detail: str = ""
 
 
 class RouteRunner:
@@ -265,6 +268,7 @@ class RouteRunner:
         ticks = frames = 0
         failure = ""
         stop_reason = ""
+        detail = ""
         snapshot: Snapshot | None = None
         try:
             if self.on_start is not None:
@@ -306,6 +310,12 @@ class RouteRunner:
                     for name, active in (pop_switches() if pop_switches is not None else ()):
                         criteria.switch(name, active)
                     hints = tuple(manager.hints())
+                except ScenarioError as exc:
+                    # the route's layout does not suit its scenario: a reason for the run log, not a traceback
+                    log.error("route %s: scenario set-up failed at tick %d: %s", self.route.id, ticks, exc)
+                    detail = str(exc)
+                    failure = stop_reason = statistics.SIMULATION_CRASHED_FAILURE
+                    break
                 except Exception:
                     log.exception("route %s: the scenario manager failed at tick %d", self.route.id, ticks)
                     failure = stop_reason = statistics.SIMULATION_CRASHED_FAILURE
@@ -340,7 +350,7 @@ class RouteRunner:
         )
         return RouteResult(record=record, success=record.success, ticks=ticks, frames=frames,
                            duration_game=round(duration_game, lb.ROUND_DIGITS), criteria=result,
-                           stop_reason=stop_reason, events=result.events)
+                           stop_reason=stop_reason, events=result.events, detail=detail)
 
     def _cleanup(self, manager: ScenarioManagerLike, snapshot: Snapshot | None, ego_id: int,
                  background_started: bool) -> list[Any]:

@@ -11,6 +11,7 @@ from b2d_data.format import leaderboard as lb
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.maps import load_opendrive
 from b2d_data.scenarios.criteria import SWITCH_WRONG_DIRECTION, Infraction
+from b2d_data.scenarios.framework import ScenarioSetupError
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_runner import (
     NoScenarios,
@@ -197,6 +198,25 @@ def test_tick_limit_and_scenario_manager_wiring(town01, straight_route):
     assert result.record.infractions[lb.SCENARIO_TIMEOUTS] == ["Agent timed out a scenario"]
     assert result.record.scores.score_penalty == 0.7
     assert 0 < result.record.scores.score_route < 100
+
+
+class UnbuildableManager(StubManager):
+    """A manager whose scenario finds its layout missing when it is built (on the third tick)."""
+
+    def tick(self, snapshot: Snapshot, route_index: int) -> None:
+        super().tick(snapshot, route_index)
+        if self.ticks == 3:
+            raise ScenarioSetupError("Red_1: layout 'signalized junction' missing: junction 9 has no traffic lights")
+
+
+def test_a_scenario_that_cannot_be_built_stops_the_route_with_its_reason(town01, straight_route, caplog):
+    route, dense = straight_route
+    agent = PurePursuit(dense)
+    result = RouteRunner(BuiltinSimulator(town01), route, agent, scenario_manager_factory=UnbuildableManager).run()
+    assert result.record.status == "Failed - Simulation crashed" and not result.success
+    assert result.detail == "Red_1: layout 'signalized junction' missing: junction 9 has no traffic lights"
+    # logged as one line for the user, not as a traceback
+    assert "junction 9 has no traffic lights" in caplog.text and "Traceback" not in caplog.text
 
 
 def test_default_manager_drops_scenarios_off_the_route(town01, straight_route):

@@ -400,10 +400,12 @@ class Renderer:
         """Replace the per-frame mesh."""
         mesh, self._dyn_batches = _batch_mesh(mesh, None)
         data = pack_vertices(mesh)
-        if data.nbytes > self._dyn_vbo.size:
+        capacity = self._dyn_vbo.size
+        if data.nbytes > capacity:
+            # grow geometrically: the actor count rises over a route, and each regrowth rebuilds the VAOs
             self._drop_vaos("dynamic")
             self._dyn_vbo.release()
-            self._dyn_vbo = self.ctx.buffer(reserve=max(data.nbytes, 2 * self._dyn_vbo.size), dynamic=True)
+            self._dyn_vbo = self.ctx.buffer(reserve=max(data.nbytes, 2 * capacity), dynamic=True)
         if data.nbytes:
             self._dyn_vbo.write(data.tobytes())
 

@@ -89,3 +89,17 @@ def test_top_down_follows_ego_yaw(small_suite, geometry, noon):
     # 10 m ahead of the ego at 50 m height: v = 45 − f·10/(50 − 2) with the top-down camera's focal length.
     f = TOP_DOWN.intrinsic(160, 90)[0, 0]
     assert math.isclose(v, 45.0 - f * 10.0 / 48.0, rel_tol=1e-9)
+
+
+def test_dynamic_buffer_grows_with_the_actor_count(small_suite, geometry, noon):
+    # The per-frame vertex buffer starts at 1 MiB; 80 cars (far behind the ego, out of the front camera's view)
+    # need several MiB, so the second capture must regrow it and still draw the box where it did before.
+    box = box_prop(BOX_ID, 12.0, 0.5, (1.0, 1.5, 1.0), tag=BOX_TAG)
+    _check_box(small_suite, geometry, noon, "front", box, 10.2)
+    before = small_suite.renderer._dyn_vbo.size
+    cars = [actor_state(100 + i, "vehicle.tesla.model3", -60.0 - 6.0 * (i % 10), -20.0 + 5.0 * (i // 10))
+            for i in range(80)]  # fmt: skip
+    ego = _ego()
+    small_suite.capture(snapshot_of([ego, box, *cars], noon), ego.id)
+    assert small_suite.renderer._dyn_vbo.size > before
+    _check_box(small_suite, geometry, noon, "front", box, 10.2)

@@ -314,6 +314,27 @@ def _image(spec: SyntheticClipSpec, anno: dict, cam: str, frame: int) -> np.ndar
     return img
 
 
+def _lidar_sweep(n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` ego-frame points ordered like a spinning 64-channel sweep: rings on flat ground, walls 20–60 m away.
+
+    Ordered neighbours are what LAZ's predictive coder sees in real sweeps; uniformly scattered points would
+    compress (and decode) far worse than any real LiDAR frame.
+    """
+    channels = 64
+    steps = -(-n // channels)
+    elev = np.radians(np.linspace(10.0, -30.0, channels))[None, :]
+    azim = np.radians(np.arange(steps) * (360.0 / steps))[:, None]
+    height = LIDAR.mount.z
+    wall = 40.0 + 20.0 * np.sin(3.0 * azim) * np.cos(5.0 * azim)  # façades at 20–60 m, varying with azimuth
+    down = np.sin(-elev)
+    ground = np.where(down > 1e-6, height / np.maximum(down, 1e-6), np.inf)
+    horizontal = np.minimum(wall, ground * np.cos(elev))
+    r = horizontal / np.cos(elev) + rng.normal(0.0, 0.01, (steps, channels))
+    pts = np.stack([r * np.cos(elev) * np.cos(azim), r * np.cos(elev) * np.sin(azim),
+                    r * np.sin(elev) + height], axis=-1)  # fmt: skip
+    return pts.reshape(-1, 3)[:n] + np.array([LIDAR.mount.x, LIDAR.mount.y, 0.0])
+
+
 def synthetic_record(spec: SyntheticClipSpec, frame: int) -> FrameRecord:
     """The FrameRecord of one synthetic frame (images, dense labels, LiDAR, radar, expert vector)."""
     anno = scene_anno(spec, frame)
@@ -330,12 +351,7 @@ def synthetic_record(spec: SyntheticClipSpec, frame: int) -> FrameRecord:
             cams[cam] = CameraFrame(rgb, depth, semantic, instance)
         else:
             cams[cam] = CameraFrame(rgb)
-    lidar = None
-    if spec.lidar_points:
-        lidar = np.stack(
-            [rng.uniform(-50, 50, spec.lidar_points), rng.uniform(-50, 50, spec.lidar_points),
-             rng.uniform(-2, 3, spec.lidar_points)], axis=1,
-        )  # fmt: skip
+    lidar = _lidar_sweep(spec.lidar_points, rng) if spec.lidar_points else None
     radar = None
     if spec.radar:
         radar = {}

@@ -232,10 +232,10 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         print(f"skipped {len(summary.skipped_routes)} route(s) without a map: {', '.join(summary.skipped_routes[:10])}")
     if not summary.complete:
         short = [f"{s.scenario} {s.clips}/{s.requested}" for s in summary.scenarios if not s.complete]
-        print(
-            f"{PROG}: targets not met: {', '.join(short)} (raise --attempts-per-clip or use another --seed)",
-            file=sys.stderr,
-        )
+        # a route file's routes are fixed: only generated collections can try other routes
+        hint = (f"why each route failed: {Path(summary.out) / 'run_log.jsonl'}" if args.routes is not None
+                else "raise --attempts-per-clip or use another --seed")  # fmt: skip
+        print(f"{PROG}: targets not met: {', '.join(short)} ({hint})", file=sys.stderr)
         return EXIT_SHORT
     return 0
 

@@ -28,6 +28,9 @@ CARLA_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
 #: the throttle that gives an acceleration of 2 m/s² per m/s of speed error (hold speed at zero error), from that
 #: model's exact inverse, on a grid of 121 speeds (0–120 km/h) × 12 errors (0–1.89 km/h). The brake ratio is kept.
 #: In closed loop it holds 2–25 m/s targets within −0.07 … +0.6 m/s without the brake pulses CARLA's fit shows here.
+#: The ego itself drives with ``blueprints.EGO_DYNAMICS`` (PDM-Lite's CARLA ego model, so the ego forecast keeps
+#: PDM-Lite's polynomial); on that model these parameters hold 2–25 m/s targets within −0.03 … +0.57 m/s, closer
+#: than the same procedure re-run on it (−0.16 … +0.57 m/s), so they are kept.
 BUILTIN_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
     0.039967819680455846, 0.30170846342589847, 0.254426199300406, -279.7896903295491, -8.884050257847589,
     18.4254759833086, 1.031266635497984,
@@ -155,6 +158,10 @@ class ExpertConfig:
     min_speed_prevent_rolling_back: float = 0.5
     blocked_speed: float = 0.1
     max_blocked_ticks: int = 170
+    #: Not PDM-Lite: braking for a vehicle while still within this distance (m) of the unshifted route, the ego steers
+    #: back along it instead of on into a planned lane shift (``route_shifting.still_before_shift``); 1 m is about
+    #: where the ego's side crosses into a 3.2 m neighbouring lane.
+    hold_lane_tolerance: float = 1.0
 
     # --- obstacle scenarios (§1.9) ---
     max_distance_to_process_scenario: float = 50.0

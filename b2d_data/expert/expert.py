@@ -35,6 +35,7 @@ from b2d_data.expert.lights_and_signs import StopSignTracker, red_light_target_s
 from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
 from b2d_data.expert.obstacle_scenarios import ObstacleScenarioManager, ReducedBy
 from b2d_data.expert.route_processing import DenseRoute, build_dense_route
+from b2d_data.expert.route_shifting import still_before_shift
 from b2d_data.expert.state import CloseSignal, ExpertState
 from b2d_data.format.road_option import RoadOption
 from b2d_data.sim.api import ActorState, ScenarioHint, Snapshot, TrafficLightState, VehicleControl
@@ -138,7 +139,12 @@ class Expert:
         junction = bool(ego_wp.is_junction) if ego_wp is not None else False
 
         throttle, control_brake = self.longitudinal.get_throttle_and_brake(brake, final_speed, speed)
-        ahead_points = route.points[index:]
+        # A deviation from PDM-Lite: while braking for a vehicle and still on its lane before a planned lane shift,
+        # steer along the unshifted route. PDM-Lite keeps steering into the shift while it brakes, which drives it into the very
+        # car it brakes for when that car is beside it in the target lane (HazardAtSideLane behind a slow car).
+        holding = hazards.vehicle_hazard and still_before_shift(route, position, cfg.hold_lane_tolerance,
+                                                                 cfg.lateral_max_lookahead)
+        ahead_points = (route.original_points if holding else route.points)[index:]
         steer = round(self.lateral.step(ahead_points, speed, position[:2], yaw), 3)
         aim = ahead_points[lookahead_index(cfg, speed, ahead_points.shape[0])].copy()
         angle = math.degrees(heading_error(position, yaw, aim)) / 90.0

@@ -70,6 +70,16 @@ def shift_route_around_actors(route: DenseRoute, first_location: np.ndarray, fir
     return start, end
 
 
+def still_before_shift(route: DenseRoute, position: np.ndarray, tolerance: float, lookahead: float) -> bool:
+    """True when the ego is within ``tolerance`` m of the unshifted route and the route is shifted within
+    ``lookahead`` m ahead of its index (it has planned a lane shift but not started to drive it)."""
+    index = route.index
+    if float(np.linalg.norm(np.asarray(position)[:2] - route.original_points[index, :2])) > tolerance:
+        return False
+    end = index + route.config.points(lookahead)
+    return bool(np.any(route.points[index:end] != route.original_points[index:end]))
+
+
 def extend_shift(route: DenseRoute, previous_end: int, target_end: int, to_left: bool, transition: int) -> int:
     """Keep the route fully shifted from ``previous_end`` on and ramp back over the last transition before the end.
 

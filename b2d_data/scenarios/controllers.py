@@ -249,9 +249,11 @@ class ConstantVelocityAgent:
         predict: float = 0.0,
         resume_accel: float = 3.0,
         crossing_stop_gap: float = 2.0,
+        lateral_margin: float = 0.3,
     ) -> None:
         self.sim = sim
         self.crossing_stop_gap = crossing_stop_gap
+        self.lateral_margin = lateral_margin
         self.predict = predict
         self.actor_id = actor_id
         self.path = path
@@ -303,7 +305,9 @@ class ConstantVelocityAgent:
         self.blocked_by = None
         if self.detect_vehicles:
             threshold = self.base_threshold + self.speed_ratio * max(actor.speed(), self.speed) * 3.6
-            gap, other = leader_gap(snapshot, actor, self.path, s_now, threshold, self.ignore, predict=self.predict)
+            gap, other = leader_gap(
+                snapshot, actor, self.path, s_now, threshold, self.ignore, self.lateral_margin, self.predict
+            )
             if gap < threshold and other is not None:
                 self.blocked_by = other
                 heading = snapshot.actors[other].transform.rotation.yaw - actor.transform.rotation.yaw

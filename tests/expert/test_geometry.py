@@ -22,7 +22,7 @@ from b2d_data.expert.lights_and_signs import StopSignTracker, stop_sign_centre
 from b2d_data.expert.obb import OrientedBox, boxes_overlap
 from b2d_data.expert.obstacle_scenarios import is_overtaking_path_clear, min_time_for_distance
 from b2d_data.expert.route_processing import light_governs_mask, resample, route_headings
-from b2d_data.expert.route_shifting import extend_shift, shift_route_smoothly, smooth_transition
+from b2d_data.expert.route_shifting import extend_shift, shift_route_smoothly, smooth_transition, still_before_shift
 from b2d_data.format.road_option import RoadOption
 from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
 from b2d_data.sim.api import TrafficLightInfo, TrafficLightState, TrafficSignInfo, VehicleControl
@@ -145,6 +145,19 @@ def test_extend_shift_moves_the_return_ramp(make_route):
     assert route.points[410, 1] == pytest.approx(-1.75)  # halfway down the new ramp
     assert route.points[450, 1] == 0.0
     assert route.commands[420] is RoadOption.CHANGELANERIGHT
+
+
+def test_still_before_shift(make_route):
+    route = make_route(60.0)
+    shift_route_smoothly(route, 200, 500, True, 80)  # left over x = 20 … 50 m
+    route.index = 150  # x = 15: the shift starts 5 m ahead, inside a 10.5 m look-ahead
+    assert still_before_shift(route, np.array([15.0, 0.0, 0.0]), 0.5, 10.5)
+    assert not still_before_shift(route, np.array([15.0, -0.6, 0.0]), 0.5, 10.5)  # already 0.6 m toward the shift
+    assert not still_before_shift(route, np.array([15.0, 0.0, 0.0]), 0.5, 4.0)  # the shift is beyond 4 m
+    route.index = 250  # x = 25, inside the ramp (route at y = −1.75) while the ego is still on its lane
+    assert still_before_shift(route, np.array([25.0, 0.2, 0.0]), 0.5, 10.5)
+    route.index = 50  # x = 5: nothing shifted within 10.5 m
+    assert not still_before_shift(route, np.array([5.0, 0.0, 0.0]), 0.5, 10.5)
 
 
 def test_closest_index(make_route):

@@ -106,6 +106,16 @@ def test_leader_gap_counts_boxes_reaching_into_the_path():
     assert other == 4 and gap == pytest.approx(11.0)
 
 
+def test_leader_gap_lateral_margin():
+    # A car waiting to cross with its nose 1.2 m from the path centre: my half width 1.0 plus the default 0.3 m margin
+    # (1.3 m) counts it, a margin of 0 (1.0 m: only a box that really reaches into my swept path) does not.
+    straight = PathTrack(np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 0.0]]))
+    me = car(0, 0, actor_id=1)
+    waiting = car(15.0, 3.2, yaw=-90.0, actor_id=2)  # facing the path: its front corners at lateral 3.2 - 2 = 1.2
+    assert leader_gap(snapshot_of(me, waiting), me, straight, 0.0, 30.0)[1] == 2
+    assert leader_gap(snapshot_of(me, waiting), me, straight, 0.0, 30.0, lateral_margin=0.0) == (math.inf, None)
+
+
 # ------------------------------------------------------------------------------------------------ in the simulator
 
 

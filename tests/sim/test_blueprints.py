@@ -104,3 +104,33 @@ def test_geometry_matches_expert_model():
     assert g.slip_angle(0.5) == pytest.approx(beta)
     assert g.turn_radius(0.5) == pytest.approx(1.41783 / np.sin(beta))
     assert g.steer_for_curvature(1.0 / g.turn_radius(0.5)) == pytest.approx(0.5)
+
+
+def _full_throttle(dynamics: blueprints.LongitudinalModel, speed: float, ticks: int) -> tuple[float, float]:
+    """(distance, speed) after ``ticks`` steps of 0.05 s at full throttle on a straight line."""
+    from b2d_data.sim.builtin import kinematic_bicycle as kb
+
+    state = np.zeros((1, len(kb.STATE_COLUMNS)))
+    state[0, kb.STATE_COLUMNS.index("speed")] = speed
+    state[0, kb.STATE_COLUMNS.index("throttle")] = 1.0
+    arr = kb.VehicleArrays.from_rows(state, kb.param_row(dynamics, blueprints.DEFAULT_GEOMETRY)[None, :])
+    for _ in range(ticks):
+        kb.step(arr, 0.05)
+    return float(arr.x[0]), float(arr.speed[0])
+
+
+def test_ego_accelerates_like_the_expert_forecast_model():
+    # The ego (only the mkz_2020, not the 2017 background model) gets its own dynamics.
+    assert blueprints.find(EGO_TYPE_ID).dynamics is blueprints.EGO_DYNAMICS
+    assert blueprints.find("vehicle.lincoln.mkz_2017").dynamics is blueprints.CAR_DYNAMICS
+    # PDM-Lite's ego throttle polynomial (§1.6) at throttle 1 from standstill: c2 + c3 = −0.380192912 + 1.74950069
+    # = 1.369308 km/h in one 0.05 s step = 7.607 m/s². The sim: (7.711 − 0.25 rolling) · 0.05 = 0.37305 m/s
+    # = 7.461 m/s², within the fit's 0.15 m/s².
+    _, v1 = _full_throttle(blueprints.EGO_DYNAMICS, 0.0, 1)
+    assert v1 == pytest.approx(0.37305, abs=1e-9)
+    assert abs(v1 / 0.05 - 1.369308 / 3.6 / 0.05) < 0.15
+    # At 10 m/s (36 km/h) the polynomial gains 0.8926 km/h per step = 4.959 m/s²; the sim gains
+    # 7.711 − 0.2413·10 − 0.25 − 4e-4·10² = 5.008 m/s².
+    _, v10 = _full_throttle(blueprints.EGO_DYNAMICS, 10.0, 1)
+    assert (v10 - 10.0) / 0.05 == pytest.approx(5.008, abs=1e-9)
+    assert abs((v10 - 10.0) / 0.05 - 0.8926 / 3.6 / 0.05) < 0.15

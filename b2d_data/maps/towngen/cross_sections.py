@@ -109,7 +109,9 @@ class TownWidths:
             return round(float(rng.uniform(lo, hi)), 2)
 
         return cls(
-            street_lane=pick(3.1, 3.5),
+            # CARLA's town streets are 3.5 m a lane (Town10HD, Town06; Town01 4 m). PDM-Lite's part-way overtake of a
+            # parked car (60 % into the opposite lane) keeps 1.2 m from it there but only 0.8 m on a 3.1 m lane.
+            street_lane=pick(3.3, 3.6),
             boulevard_lane=pick(3.25, 3.5),
             highway_lane=pick(3.5, 3.75),
             rural_lane=pick(3.4, 3.75),

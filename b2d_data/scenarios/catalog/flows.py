@@ -109,6 +109,8 @@ class ActorFlow:
         if self.constant_velocity:
             # Unlike LB2.0's flows (constant velocity through anything until the first crash) these brake for a
             # vehicle in their lane, as scenario_runner's earlier BasicAgent flows did: a merged ego is not rear-ended.
+            # Only a box that reaches into the swept path counts (no margin): a car waiting to turn across the flow
+            # with its nose 0.3 m short of that path would otherwise stop the flow, and both would wait for ever.
             agent: ConstantVelocityAgent | LaneFollowingAgent = ConstantVelocityAgent(
                 self.sim,
                 actor_id,
@@ -120,6 +122,7 @@ class ActorFlow:
                 max_brake=1.0,
                 predict=1.0,
                 crossing_stop_gap=6.0,
+                lateral_margin=0.0,
             )
             # a flow car enters at its cruising speed
             yaw = math.radians(wp.transform.rotation.yaw)

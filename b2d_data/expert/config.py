@@ -158,9 +158,9 @@ class ExpertConfig:
     min_speed_prevent_rolling_back: float = 0.5
     blocked_speed: float = 0.1
     max_blocked_ticks: int = 170
-    #: Not PDM-Lite: braking for a vehicle while still within this distance (m) of the unshifted route, the ego steers
-    #: back along it instead of on into a planned lane shift (``route_shifting.still_before_shift``); 1 m is about
-    #: where the ego's side crosses into a 3.2 m neighbouring lane.
+    #: Not PDM-Lite: braking for a vehicle outside its lane while within this distance (m) of the unshifted route,
+    #: the ego steers back along it instead of on into a planned lane shift (``route_shifting.still_before_shift``);
+    #: 1 m is about where the ego's side crosses into a 3.2 m neighbouring lane.
     hold_lane_tolerance: float = 1.0
 
     # --- obstacle scenarios (§1.9) ---

@@ -139,11 +139,13 @@ class Expert:
         junction = bool(ego_wp.is_junction) if ego_wp is not None else False
 
         throttle, control_brake = self.longitudinal.get_throttle_and_brake(brake, final_speed, speed)
-        # A deviation from PDM-Lite: while braking for a vehicle and still on its lane before a planned lane shift,
-        # steer along the unshifted route. PDM-Lite keeps steering into the shift while it brakes, which drives it into the very
-        # car it brakes for when that car is beside it in the target lane (HazardAtSideLane behind a slow car).
-        holding = hazards.vehicle_hazard and still_before_shift(route, position, cfg.hold_lane_tolerance,
-                                                                 cfg.lateral_max_lookahead)
+        # A deviation from PDM-Lite: while braking for a vehicle in the target lane and still on its own lane before a
+        # planned lane shift, steer along the unshifted route. PDM-Lite keeps steering into the shift while it brakes,
+        # which drives it into the very car it brakes for (HazardAtSideLane beside a slower car). Braking for the
+        # obstacle in its own lane (Accident), it still edges into the shift as PDM-Lite does.
+        blocker = snapshot.actors.get(hazards.vehicle_id) if hazards.vehicle_id is not None else None
+        holding = blocker is not None and still_before_shift(route, position, _xyz(blocker), cfg.hold_lane_tolerance,
+                                                              cfg.lateral_max_lookahead)
         ahead_points = (route.original_points if holding else route.points)[index:]
         steer = round(self.lateral.step(ahead_points, speed, position[:2], yaw), 3)
         aim = ahead_points[lookahead_index(cfg, speed, ahead_points.shape[0])].copy()

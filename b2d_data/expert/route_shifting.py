@@ -70,14 +70,24 @@ def shift_route_around_actors(route: DenseRoute, first_location: np.ndarray, fir
     return start, end
 
 
-def still_before_shift(route: DenseRoute, position: np.ndarray, tolerance: float, lookahead: float) -> bool:
-    """True when the ego is within ``tolerance`` m of the unshifted route and the route is shifted within
-    ``lookahead`` m ahead of its index (it has planned a lane shift but not started to drive it)."""
+def still_before_shift(route: DenseRoute, position: np.ndarray, blocker: np.ndarray, tolerance: float,
+                       lookahead: float) -> bool:
+    """True when the ego has planned a lane shift but not started to drive it, and ``blocker`` is not in its lane.
+
+    That is: the ego is within ``tolerance`` m of the unshifted route, the route is shifted within ``lookahead`` m
+    ahead of its index, and the blocking vehicle's centre is more than half a lane from the unshifted route (within
+    50 m of the ego along it), i.e. in the lane the shift goes to rather than the obstacle the shift goes around.
+    """
     index = route.index
     if float(np.linalg.norm(np.asarray(position)[:2] - route.original_points[index, :2])) > tolerance:
         return False
     end = index + route.config.points(lookahead)
-    return bool(np.any(route.points[index:end] != route.original_points[index:end]))
+    if not np.any(route.points[index:end] != route.original_points[index:end]):
+        return False
+    window = route.config.points(50.0)
+    lane = route.original_points[max(0, index - window) : index + window, :2]
+    offset = float(np.min(np.linalg.norm(lane - np.asarray(blocker)[None, :2], axis=1)))
+    return offset > 0.5 * float(route.waypoint(index).lane_width)
 
 
 def extend_shift(route: DenseRoute, previous_end: int, target_end: int, to_left: bool, transition: int) -> int:

@@ -149,15 +149,18 @@ def test_extend_shift_moves_the_return_ramp(make_route):
 
 def test_still_before_shift(make_route):
     route = make_route(60.0)
-    shift_route_smoothly(route, 200, 500, True, 80)  # left over x = 20 … 50 m
+    shift_route_smoothly(route, 200, 500, True, 80)  # left (−y) over x = 20 … 50 m; lanes 3.5 m wide
+    beside = np.array([17.0, -3.5, 0.0])  # a car in the target lane, 3.5 m > half a lane from the ego's lane
+    ahead = np.array([35.0, 0.0, 0.0])  # the obstacle the shift goes around, in the ego's lane
     route.index = 150  # x = 15: the shift starts 5 m ahead, inside a 10.5 m look-ahead
-    assert still_before_shift(route, np.array([15.0, 0.0, 0.0]), 0.5, 10.5)
-    assert not still_before_shift(route, np.array([15.0, -0.6, 0.0]), 0.5, 10.5)  # already 0.6 m toward the shift
-    assert not still_before_shift(route, np.array([15.0, 0.0, 0.0]), 0.5, 4.0)  # the shift is beyond 4 m
+    assert still_before_shift(route, np.array([15.0, 0.0, 0.0]), beside, 0.5, 10.5)
+    assert not still_before_shift(route, np.array([15.0, 0.0, 0.0]), ahead, 0.5, 10.5)
+    assert not still_before_shift(route, np.array([15.0, -0.6, 0.0]), beside, 0.5, 10.5)  # 0.6 m toward the shift
+    assert not still_before_shift(route, np.array([15.0, 0.0, 0.0]), beside, 0.5, 4.0)  # the shift is beyond 4 m
     route.index = 250  # x = 25, inside the ramp (route at y = −1.75) while the ego is still on its lane
-    assert still_before_shift(route, np.array([25.0, 0.2, 0.0]), 0.5, 10.5)
+    assert still_before_shift(route, np.array([25.0, 0.2, 0.0]), beside, 0.5, 10.5)
     route.index = 50  # x = 5: nothing shifted within 10.5 m
-    assert not still_before_shift(route, np.array([5.0, 0.0, 0.0]), 0.5, 10.5)
+    assert not still_before_shift(route, np.array([5.0, 0.0, 0.0]), beside, 0.5, 10.5)
 
 
 def test_closest_index(make_route):

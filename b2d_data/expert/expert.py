@@ -139,7 +139,7 @@ class Expert:
         junction = bool(ego_wp.is_junction) if ego_wp is not None else False
 
         throttle, control_brake = self.longitudinal.get_throttle_and_brake(brake, final_speed, speed)
-        # A deviation from PDM-Lite: while braking for a vehicle in the target lane and still on its own lane before a
+        # A deviation from PDM-Lite: while braking for a vehicle outside its own lane and still on that lane before a
         # planned lane shift, steer along the unshifted route. PDM-Lite keeps steering into the shift while it brakes,
         # which drives it into the very car it brakes for (HazardAtSideLane beside a slower car). Braking for the
         # obstacle in its own lane (Accident), it still edges into the shift as PDM-Lite does.

@@ -101,9 +101,10 @@ MOTORCYCLE_DYNAMICS = LongitudinalModel(max_accel=5.0, accel_falloff=0.1, max_br
 BICYCLE_DYNAMICS = LongitudinalModel(
     max_accel=1.8, accel_falloff=0.2, max_brake=5.0, hand_brake=4.0, rolling=0.15, drag=1.0e-3, max_reverse_speed=1.5
 )
-#: The ego's car (``vehicle.lincoln.mkz_2020``) accelerates like the CARLA Lincoln that PDM-Lite's ego forecast
-#: describes (expert-and-scenarios.md §1.6, ``ExpertConfig.ego_throttle_poly``): at full throttle that polynomial
-#: gives 7.607 − 0.2999·v + 0.003504·v² m/s² (v in m/s), twice the generic car's 3.55 m/s² from standstill.
+#: The Lincoln MKZ 2020 (``vehicle.lincoln.mkz_2020``, the ego's car) accelerates like the CARLA Lincoln that
+#: PDM-Lite's ego forecast describes (expert-and-scenarios.md §1.6, ``ExpertConfig.ego_throttle_poly``): at full
+#: throttle that polynomial gives 7.607 − 0.2999·v + 0.003504·v² m/s² (v in m/s), twice the generic car's
+#: 3.55 m/s² from standstill.
 #: LB2.0's gaps assume such a car: a SignalizedJunctionLeftTurn flow at 9 m/s with 22 m headways leaves 2.0 s between
 #: one car's rear and the next one's front, and crossing its lane from a standstill (about 10 m) takes 2.5 s with
 #: the generic car but 1.8 s with this model (expert success on that scenario 12/20 → 19/20).

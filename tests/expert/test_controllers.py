@@ -197,24 +197,3 @@ def test_ego_speed_polynomials():
     assert expected * 3.6 == pytest.approx(34.6806, abs=1e-3)
     # full throttle at 36 km/h gains 0.89 km/h in one step
     assert ego_next_speed(CFG, 10.0, 1.0, False) * 3.6 == pytest.approx(36.8926, abs=1e-3)
-
-
-def test_ego_forecast_from_standstill_matches_the_simulated_ego():
-    # The forecast a standing ego makes before crossing a junction: 40 steps at full throttle. Summing PDM-Lite's
-    # polynomial step by step (1.3693 km/h in the first step, ≈ 91.3·(1 − 0.985^k) km/h after k) gives 12.530 m at
-    # 11.813 m/s after 2 s; the simulated ego (blueprints.EGO_DYNAMICS) drives 12.535 m, so the forecast is where the
-    # ego will be. (With the generic car's dynamics it drove 6.6 m and the forecast was 5.9 m too far ahead.)
-    from b2d_data.sim import blueprints
-    from b2d_data.sim.builtin import kinematic_bicycle as kb
-
-    x = v = 0.0
-    for _ in range(40):
-        x, _, _, v = forecast_ego(CFG, x, 0.0, 0.0, v, 0.0, 1.0, False)
-    assert (x, v) == pytest.approx((12.530, 11.813), abs=1e-3)
-    state = np.zeros((1, len(kb.STATE_COLUMNS)))
-    state[0, kb.STATE_COLUMNS.index("throttle")] = 1.0
-    ego = kb.VehicleArrays.from_rows(state, kb.param_row(blueprints.EGO_DYNAMICS, blueprints.DEFAULT_GEOMETRY)[None])
-    for _ in range(40):
-        kb.step(ego, CFG.dt)
-    assert float(ego.x[0]) == pytest.approx(x, abs=0.05)
-    assert float(ego.speed[0]) == pytest.approx(v, abs=0.1)

@@ -134,3 +134,21 @@ def test_ego_accelerates_like_the_expert_forecast_model():
     _, v10 = _full_throttle(blueprints.EGO_DYNAMICS, 10.0, 1)
     assert (v10 - 10.0) / 0.05 == pytest.approx(5.008, abs=1e-9)
     assert abs((v10 - 10.0) / 0.05 - 0.8926 / 3.6 / 0.05) < 0.15
+
+
+def test_ego_forecast_from_standstill_matches_the_simulated_ego():
+    # The forecast a standing ego makes before crossing a junction: 40 steps at full throttle. Summing PDM-Lite's
+    # polynomial step by step (1.3693 km/h in the first step, ≈ 91.3·(1 − 0.985^k) km/h after k) gives 12.530 m at
+    # 11.813 m/s after 2 s; the simulated ego (blueprints.EGO_DYNAMICS) drives 12.535 m, so the forecast is where the
+    # ego will be. (With the generic car's dynamics it drove 6.6 m and the forecast was 5.9 m too far ahead.)
+    from b2d_data.expert.config import ExpertConfig
+    from b2d_data.expert.kinematic_bicycle import forecast_ego
+
+    config = ExpertConfig()
+    x = v = 0.0
+    for _ in range(40):
+        x, _, _, v = forecast_ego(config, x, 0.0, 0.0, v, 0.0, 1.0, False)
+    assert (x, v) == pytest.approx((12.530, 11.813), abs=1e-3)
+    distance, speed = _full_throttle(blueprints.EGO_DYNAMICS, 0.0, 40)
+    assert distance == pytest.approx(x, abs=0.05)
+    assert speed == pytest.approx(v, abs=0.1)

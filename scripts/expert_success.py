@@ -38,6 +38,11 @@ SCENARIOS: tuple[str, ...] = (
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
 )  # fmt: skip
+# Issue 14 (emergency brakes, cut-ins, pedestrians, remaining sign scenarios, plain routes).
+SCENARIOS += (
+    "NoScenario", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight", "T_Junction",
+    "OppositeVehicleTakingPriority",
+)  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 

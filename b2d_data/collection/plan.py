@@ -109,7 +109,7 @@ def implemented_scenarios() -> list[str]:
 
     with contextlib.suppress(Exception):
         scenario_class(next(iter(placement.LAYOUTS)))  # imports the catalog, filling the registry
-    return sorted(t for t in placement.LAYOUTS if t in SCENARIO_CLASSES)
+    return sorted(t for t in placement.LAYOUTS if t in SCENARIO_CLASSES or t == NO_SCENARIO)
 
 
 def _check_generated_scenario(name: str) -> str:

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from b2d_data.format.scenario_types import SCENARIO_TYPES
+from b2d_data.format.scenario_types import NO_SCENARIO, SCENARIO_TYPES
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneType, Map, Waypoint
@@ -237,6 +237,11 @@ def _red_light_runner(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dic
     return out
 
 
+def _three_arms(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Junctions where three roads meet (a T)."""
+    return [{}] if len({lane.entry.road_id for lane in lanes}) == 3 else []
+
+
 def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]]:
     def check(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
         for entry in entries_from(lanes, conn.entry, direction):
@@ -282,11 +287,28 @@ LAYOUTS: dict[str, Layout] = {
         "stop_sign_junction", "an unsignalised junction with a stop sign on the approach where the route turns",
         turns=("left", "right"), signalized=False, stop_sign=True, approach=(28.0, 36.0), departure=(18.0, 26.0),
         trigger_offset=(3.0, 5.0)),
+    "VanillaNonSignalizedTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns", turns=("left", "right"),
+        signalized=False, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+    "VanillaSignalizedTurnEncounterGreenLight": Layout(
+        "signalized_junction", "a signalised junction where the route turns", turns=("left", "right"),
+        signalized=True, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+    "T_Junction": Layout(
+        "t_junction", "a junction of three roads that the route crosses", turns=("left", "right", "straight"),
+        junction_extra=_three_arms, approach=(30.0, 38.0), departure=(22.0, 30.0), trigger_offset=(20.0, 26.0)),
+    "OppositeVehicleTakingPriority": Layout(
+        "unsignalized_junction", "an unsignalised junction crossed straight (or turning left) with a straight "
+        "crossing entry", turns=("straight", "left"), signalized=False, junction_extra=_red_light_runner),
+    # Plain routes with background traffic only (no <scenario>): through one junction, any turn.
+    NO_SCENARIO: Layout(
+        "junction", "a junction the route crosses", turns=("left", "right", "straight"), approach=(30.0, 40.0),
+        departure=(30.0, 40.0)),
 }  # fmt: skip
 
 
 def _check_type(scenario_type: str) -> Layout:
-    scenario_class(scenario_type)  # unknown types: error listing the known ones
+    if scenario_type != NO_SCENARIO:
+        scenario_class(scenario_type)  # unknown types: error listing the known ones
     try:
         return LAYOUTS[scenario_type]
     except KeyError:
@@ -484,7 +506,8 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
 
 def route_id(seed: int, scenario_type: str, k: int) -> str:
     """Route id: unique over seeds, types and the first 10 000 routes of a call."""
-    index = next(i for i, t in enumerate(SCENARIO_TYPES) if t.xml_type == scenario_type)
+    # NoScenario routes take the index after the 44 types
+    index = next((i for i, t in enumerate(SCENARIO_TYPES) if t.xml_type == scenario_type), len(SCENARIO_TYPES))
     return str((int(seed) * 100 + index) * 10000 + k + 1)
 
 
@@ -526,6 +549,9 @@ def _route_for(
     if _deviation(dense, path) > MAX_ROUTE_DEVIATION:
         log.debug("%s: the planner's route leaves the planned lanes", rid)
         return None
+    weather = preset(weather_id)
+    if candidate.scenario_type == NO_SCENARIO:
+        return Route(id=rid, town=town.name, waypoints=keypoints, weathers=((0.0, weather), (100.0, weather)))
     try:
         scenario_class(candidate.scenario_type)(
             ScenarioContext(
@@ -540,7 +566,6 @@ def _route_for(
     except ScenarioError as exc:
         log.debug("%s: scenario set-up rejected the place: %s", rid, exc)
         return None
-    weather = preset(weather_id)
     return Route(
         id=rid, town=town.name, waypoints=keypoints, scenarios=(config,), weathers=((0.0, weather), (100.0, weather))
     )

@@ -7,8 +7,12 @@ from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRight
 from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
 from b2d_data.scenarios.catalog.parking_exit import ParkingExit
 from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
+from b2d_data.scenarios.catalog.t_junction import TJunction
+from b2d_data.scenarios.catalog.taking_priority import OppositeVehicleTakingPriority
 from b2d_data.scenarios.catalog.vanilla_turns import (
+    VanillaNonSignalizedTurn,
     VanillaNonSignalizedTurnEncounterStopsign,
+    VanillaSignalizedTurnEncounterGreenLight,
     VanillaSignalizedTurnEncounterRedLight,
 )
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
@@ -17,4 +21,7 @@ __all__ = [
     "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionRightTurn",
     "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
+]
+__all__ += [
+    "OppositeVehicleTakingPriority", "TJunction", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight",
 ]  # fmt: skip

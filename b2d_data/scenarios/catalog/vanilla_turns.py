@@ -1,9 +1,11 @@
 """Bench2Drive's plain junction turns (§2.2 #39–#42): no actors, only forced lights or the map's stop sign.
 
 VanillaSignalizedTurnEncounterRedLight: every light of the junction red for 5 s, then the ego's light green and
-the others red until the end. VanillaNonSignalizedTurnEncounterStopsign: nothing is forced; the route's stop sign
-is judged by the route criteria. Both end 10 m after the ego left the junction; they carry a ScenarioTimeoutTest
-that never fires (there is no ScenarioTimeout behaviour).
+the others red until the end. VanillaSignalizedTurnEncounterGreenLight: the ego's light green (others red) for 5 s,
+then every light red for 5 s, then the normal cycle. VanillaNonSignalizedTurnEncounterStopsign: nothing is forced;
+the route's stop sign is judged by the route criteria. VanillaNonSignalizedTurn: a turn at an unsignalised junction
+with background traffic only. All end 10 m after the ego left the junction; they carry a ScenarioTimeoutTest that
+never fires (there is no ScenarioTimeout behaviour).
 """
 
 from __future__ import annotations
@@ -71,6 +73,56 @@ class VanillaSignalizedTurnEncounterRedLight(VanillaJunctionTurn):
         """Release the lights."""
         if self.lights is not None:
             self.lights.release()
+
+
+@register
+class VanillaSignalizedTurnEncounterGreenLight(VanillaJunctionTurn):
+    """The ego's light green for 5 s, then all red for 5 s, then the normal cycle (§2.2 #41)."""
+
+    xml_type = "VanillaSignalizedTurnEncounterGreenLight"
+    green_time = 5.0
+    red_time = 5.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.lights: LightSchedule | None = None
+
+    def build(self) -> None:
+        """Check that the junction is signalised."""
+        self.require_lights(self.ctx.sim.snapshot())
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Start the light schedule (it releases the lights itself after its last phase)."""
+        lights = self.require_lights(snapshot)
+        ego_green = light_states(lights, lights_of_lane(lights, self.ego_entry))
+        all_red = light_states(lights, [])
+        self.lights = LightSchedule(self.ctx.sim, [(ego_green, self.green_time), (all_red, self.red_time)])
+        self.lights.update(snapshot)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Advance the lights; SUCCESS 10 m after the junction."""
+        if self.lights is not None:
+            self.lights.update(snapshot)
+        return super().update(snapshot)
+
+    def on_end(self) -> None:
+        """Release the lights."""
+        if self.lights is not None:
+            self.lights.release()
+
+
+@register
+class VanillaNonSignalizedTurn(VanillaJunctionTurn):
+    """A plain turn at an unsignalised junction with background traffic (§2.2 #39)."""
+
+    xml_type = "VanillaNonSignalizedTurn"
+
+    def build(self) -> None:
+        """Check that the junction has no traffic light."""
+        if self.junction_lights(self.ctx.sim.snapshot()):
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'unsignalized junction' missing: junction {self.junction.id} has traffic lights"
+            )
 
 
 @register

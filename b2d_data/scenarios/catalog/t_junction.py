@@ -1,0 +1,36 @@
+"""T_Junction (clip name TJunction, §2.2 #44): a route through a three-way junction, background traffic only.
+
+No actors and no parameters: the scenario ends when the ego has driven 200 m after the trigger or after the
+240 s ScenarioTimeout (its ScenarioTimeoutTest then records an infraction). Bench2Drive's routes are shorter
+than 200 m, so the scenario normally lasts until the route ends.
+"""
+
+from __future__ import annotations
+
+from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from b2d_data.scenarios.catalog.road_geometry import JunctionLane
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioStatus, register
+from b2d_data.scenarios.triggers import DriveDistance
+from b2d_data.sim.api import Snapshot
+
+
+def junction_arms(lanes: list[JunctionLane]) -> int:
+    """How many roads lead into a junction (3 for a T)."""
+    return len({lane.entry.road_id for lane in lanes})
+
+
+@register
+class TJunction(JunctionScenario):
+    """A plain drive through a T-junction."""
+
+    xml_type = "T_Junction"
+    end_distance = 200.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        # the arm count is a placement rule only: CARLA's towns split some T-junctions into several junctions
+        self._after = DriveDistance(self.end_distance)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """SUCCESS after 200 m."""
+        return ScenarioStatus.SUCCESS if self._after.check(self.ctx.ego(snapshot)) else ScenarioStatus.RUNNING

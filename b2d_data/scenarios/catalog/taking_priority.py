@@ -1,0 +1,42 @@
+"""OppositeVehicleTakingPriority (§2.2 #38): a car crosses an unsignalised junction in front of the ego.
+
+The red-light runner's behaviour (adversary 30 m before the junction on the ``direction`` entry, TTA trigger
+(2.2 s, 12 m) at the conflict point, straight crossing at 60 km/h ignoring everything, removed 10 m past its exit)
+at a junction without lights, with an ordinary car instead of an ambulance and the junction entries stopped.
+"""
+
+from __future__ import annotations
+
+from b2d_data.scenarios.catalog.actor_choices import random_parked_car
+from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
+from b2d_data.scenarios.catalog.road_geometry import offset_transform
+from b2d_data.scenarios.controllers import park
+from b2d_data.scenarios.framework import ScenarioSetupError, register
+from b2d_data.sim.api import Snapshot
+
+
+@register
+class OppositeVehicleTakingPriority(OppositeVehicleRunningRedLight):
+    """A car takes priority over the ego at an unsignalised junction."""
+
+    xml_type = "OppositeVehicleTakingPriority"
+
+    def build(self) -> None:
+        """Check that the junction has no traffic light."""
+        if self.junction_lights(self.ctx.sim.snapshot()):
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'unsignalized junction' missing: junction {self.junction.id} has traffic lights"
+            )
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Prepare the junction (entries stopped) and place the adversary."""
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=[self.spawn_waypoint],
+            remove_exits=[self.sink_waypoint], stop_entries=True, extend_road_exit=0.0,
+        )  # fmt: skip
+        transforms = [offset_transform(self.spawn_waypoint, forward=f, z=0.2) for f in (0.0, -2.0, -4.0, 2.0)]
+        self.adversary = self.spawn(random_parked_car(self.ctx.rng), transforms[0], retries=transforms[1:])
+        park(self.ctx.sim, self.adversary)
+
+    def on_end(self) -> None:
+        """No lights to release."""

@@ -29,7 +29,15 @@ from b2d_data.format.scenario_types import SCENARIO_TYPES
 from b2d_data.format.transform import Transform
 from b2d_data.scenarios.criteria.base import FAILURE, RUNNING, SUCCESS, Criterion, Infraction
 from b2d_data.scenarios.triggers import BUILD_DISTANCE, horizontal_distance, route_point_reached, trigger_route_index
-from b2d_data.sim.api import ActorSpec, ActorState, ScenarioHint, Simulator, SimulatorError, Snapshot
+from b2d_data.sim.api import (
+    ActorSpec,
+    ActorState,
+    ScenarioHint,
+    Simulator,
+    SimulatorError,
+    Snapshot,
+    VehicleControl,
+)
 
 if TYPE_CHECKING:
     from b2d_data.maps import Map
@@ -236,6 +244,10 @@ class Scenario:
         """What the expert should know about this scenario now (None: nothing)."""
         return None
 
+    def adjust_control(self, control: VehicleControl) -> VehicleControl:
+        """The ego's control as the scenario alters it after the agent's step (ControlLoss' noise); default: as is."""
+        return control
+
     def criteria(self) -> list[Criterion]:
         """The scenario-specific criteria (created once)."""
         if self._criteria is None:
@@ -412,6 +424,12 @@ class ScenarioManager:
                 if hint is not None:
                     out.append(hint)
         return out
+
+    def adjust_control(self, control: VehicleControl) -> VehicleControl:
+        """The agent's control for the ego as the running scenarios alter it (in XML order)."""
+        for scenario in self.active:
+            control = scenario.adjust_control(control)
+        return control
 
     def tick(self, snapshot: Snapshot, route_index: int) -> None:
         """Advance every scenario by one tick given the ego's current dense-route index."""

@@ -225,6 +225,16 @@ def _parking_slot(town: Map, wp: Waypoint) -> bool:
     return True
 
 
+def _parking_ahead(town: Map, wp: Waypoint) -> bool:
+    """A parking lane on the right where the car and the pedestrian stand (34–52 m after the trigger)."""
+    for distance in (34.0, 40.0, 46.0, 52.0):
+        ahead = move_along(wp, distance, step=2.0)
+        parking = ahead.get_right_lane() if ahead is not None else None
+        if parking is None or not parking.lane_type & LaneType.PARKING:
+            return False
+    return True
+
+
 def _red_light_runner(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
     """Directions whose straight crossing meets the ego: left/right for a straight ego, opposite for a left turn."""
     directions = ("left", "right") if conn.turn == "straight" else ("opposite",) if conn.turn == "left" else ()
@@ -235,6 +245,11 @@ def _red_light_runner(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dic
                 out.append({"direction": {"value": direction}})
                 break
     return out
+
+
+def _sidewalk_at_entry(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Junction entries with a sidewalk on the right (where PedestrianCrossing's group waits)."""
+    return [{}] if find_side_lane(conn.entry, "right", LaneType.SIDEWALK) is not None else []
 
 
 def _three_arms(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
@@ -290,15 +305,31 @@ LAYOUTS: dict[str, Layout] = {
     "VanillaNonSignalizedTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns", turns=("left", "right"),
         signalized=False, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+    # A shorter approach than the other Vanilla turns: the ego, starting from rest, reaches the stop line within
+    # the 5 s of green instead of arriving just as every light turns red (no yellow in between, too close to stop).
     "VanillaSignalizedTurnEncounterGreenLight": Layout(
         "signalized_junction", "a signalised junction where the route turns", turns=("left", "right"),
-        signalized=True, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+        signalized=True, approach=(16.0, 22.0), departure=(24.0, 30.0), trigger_offset=(3.0, 5.0)),
     "T_Junction": Layout(
         "t_junction", "a junction of three roads that the route crosses", turns=("left", "right", "straight"),
         junction_extra=_three_arms, approach=(30.0, 38.0), departure=(22.0, 30.0), trigger_offset=(20.0, 26.0)),
     "OppositeVehicleTakingPriority": Layout(
         "unsignalized_junction", "an unsignalised junction crossed straight (or turning left) with a straight "
         "crossing entry", turns=("straight", "left"), signalized=False, junction_extra=_red_light_runner),
+    "ParkingCrossingPedestrian": Layout("parking_lane", "rightmost lane with a parking lane on the right 34–52 m "
+                                        "ahead, 100 m junction-free", _rightmost, clear_after=100.0,
+                                        extra=_parking_ahead, max_turn=STRAIGHTISH),
+    "ControlLoss": Layout("road", "any driving lane, 115 m junction-free", _any_lane, clear_after=115.0,
+                          length=130.0),
+    "PedestrianCrossing": Layout(
+        "sidewalk_junction", "a junction entry with a sidewalk on the right", turns=("straight", "left", "right"),
+        junction_extra=_sidewalk_at_entry, trigger_offset=(4.0, 10.0)),
+    "VehicleTurningRoutePedestrian": Layout(
+        "junction_turn", "a junction where the route turns", turns=("left", "right"), departure=(45.0, 50.0)),
+    "VehicleTurningRoute": Layout(
+        "junction_turn", "a junction where the route turns", turns=("left", "right"), departure=(50.0, 55.0)),
+    "BlockedIntersection": Layout(
+        "junction_turn", "a junction where the route turns", turns=("left", "right")),
     # Plain routes with background traffic only (no <scenario>): through one junction, any turn.
     NO_SCENARIO: Layout(
         "junction", "a junction the route crosses", turns=("left", "right", "straight"), approach=(30.0, 40.0),
@@ -477,6 +508,12 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "direction": _value("right"),
             "blocker_model": _value(model),
             "crossing_angle": _value(_int(rng, 0, 11)),
+        }
+    if scenario_type == "ParkingCrossingPedestrian":
+        return {
+            "distance": _value(_int(rng, 36, 45)),
+            "direction": _value("right"),
+            "crossing_angle": _value(_int(rng, 0, 12)),
         }
     # Junction flows: the slower, sparser part of §2.2's ranges. The expert turns through a gap only when no flow
     # car's 2 s forecast meets its own; denser or faster flows (down to 1 s headways) leave it waiting for good.

@@ -55,7 +55,8 @@ class ScenarioManagerLike(Protocol):
     """The part of ``b2d_data.scenarios.framework.ScenarioManager`` the runner uses.
 
     Optional extra: ``pop_switches() -> list[tuple[str, bool]]`` returning the criteria switch requests
-    (``criteria.SWITCH_WRONG_DIRECTION`` / ``SWITCH_ACTOR_BLOCKED``) made since the last call.
+    (``criteria.SWITCH_WRONG_DIRECTION`` / ``SWITCH_ACTOR_BLOCKED``) made since the last call; and
+    ``adjust_control(control) -> control``, the ego's control as running scenarios perturb it (ControlLoss).
     """
 
     @property
@@ -327,7 +328,9 @@ class RouteRunner:
                     log.exception("route %s: the agent crashed at tick %d", self.route.id, ticks)
                     failure = stop_reason = statistics.AGENT_CRASHED_FAILURE
                     break
-                sim.apply_control(ego_id, control)
+                # scenarios may perturb what the ego executes (ControlLoss); the recorded action stays the agent's
+                adjust = getattr(manager, "adjust_control", None)
+                sim.apply_control(ego_id, adjust(control) if adjust is not None else control)
                 if self.on_frame is not None and (ticks - 1) % self.record_every == 0:
                     info = TickInfo(ticks, frames, ego_id, route_index, control, hints, criteria.score_route,
                                     len(criteria.events))

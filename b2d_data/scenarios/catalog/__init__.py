@@ -1,14 +1,19 @@
 """The implemented scenario types, one module per behaviour family; importing this package registers them."""
 
+from b2d_data.scenarios.catalog.blocked_intersection import BlockedIntersection
+from b2d_data.scenarios.catalog.control_loss import ControlLoss
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
 from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
 from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
+from b2d_data.scenarios.catalog.parking_crossing import ParkingCrossingPedestrian
 from b2d_data.scenarios.catalog.parking_exit import ParkingExit
+from b2d_data.scenarios.catalog.pedestrian_crossing import PedestrianCrossing
 from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
 from b2d_data.scenarios.catalog.t_junction import TJunction
 from b2d_data.scenarios.catalog.taking_priority import OppositeVehicleTakingPriority
+from b2d_data.scenarios.catalog.turning_route import VehicleTurningRoute, VehicleTurningRoutePedestrian
 from b2d_data.scenarios.catalog.vanilla_turns import (
     VanillaNonSignalizedTurn,
     VanillaNonSignalizedTurnEncounterStopsign,
@@ -23,5 +28,7 @@ __all__ = [
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
 ]
 __all__ += [
-    "OppositeVehicleTakingPriority", "TJunction", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight",
+    "BlockedIntersection", "ControlLoss", "OppositeVehicleTakingPriority", "ParkingCrossingPedestrian",
+    "PedestrianCrossing", "TJunction", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight",
+    "VehicleTurningRoute", "VehicleTurningRoutePedestrian",
 ]  # fmt: skip

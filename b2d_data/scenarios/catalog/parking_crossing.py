@@ -1,0 +1,120 @@
+"""ParkingCrossingPedestrian (§2.2 #15): a pedestrian steps out into the road from in front of a parked car.
+
+A car stands parked (hand brake) in the ``direction``-side parking lane ``distance`` m after the trigger; the
+pedestrian appears just in front of it (car half length + 0.5 m), facing the road (turned by ``crossing_angle``),
+when the ego's time to arrival at the lane point abreast of it drops below ``2.15 + 0.1 × floor(angle / 5)`` s (or
+within 6 m). It walks 8 m at 2 m/s across the ego's lane and is removed with the car; the scenario ends 40 m later.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+from b2d_data.format.transform import Vector3D
+from b2d_data.maps import LaneType
+from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car, random_walker
+from b2d_data.scenarios.catalog.road_geometry import move_along, neighbour, offset_transform
+from b2d_data.scenarios.controllers import WalkerController, park
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import DriveDistance, TimeToArrivalTrigger
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+@register
+class ParkingCrossingPedestrian(Scenario):
+    """A pedestrian hidden by a parked car crosses in front of the ego."""
+
+    xml_type = "ParkingCrossingPedestrian"
+    scenario_timeout = None
+    timeout_test = False
+    walker_speed = 2.0
+    walk_distance = 8.0
+    min_trigger_distance = 6.0
+    end_distance = 40.0
+    clear_extra = 15.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.distance = ctx.value("distance", 12.0)
+        self.direction = ctx.text("direction", "right")
+        if self.direction not in ("left", "right"):
+            raise ScenarioSetupError(f"{self.name}: direction must be 'left' or 'right', got {self.direction!r}")
+        self.crossing_angle = ctx.value("crossing_angle", 0.0)
+        self.sign = 1.0 if self.direction == "right" else -1.0
+        wp = move_along(self.trigger_waypoint, self.distance)
+        if wp is None or wp.is_junction:
+            raise ScenarioSetupError(f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point")
+        parking = neighbour(wp, self.direction)
+        if parking is None or not parking.lane_type & LaneType.PARKING:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'parking_lane' missing: no parking lane to the {self.direction} of road "
+                f"{wp.road_id} lane {wp.lane_id} {self.distance:.0f} m after the trigger point"
+            )
+        self.lane_waypoint = wp
+        self.parking = parking
+        self.car_model = random_parked_car(ctx.rng)
+        car_half_length = half_extent(self.car_model)[0]
+        ahead = move_along(wp, car_half_length + 0.5)
+        if ahead is None or ahead.is_junction:
+            raise ScenarioSetupError(f"{self.name}: the lane ends in front of the parked car")
+        self.collision_waypoint = ahead
+        walker_spot = neighbour(ahead, self.direction)
+        self.walker_lateral = self.sign * (
+            ahead.transform.location.distance_2d(walker_spot.transform.location)
+            if walker_spot is not None
+            else 0.5 * (ahead.lane_width + parking.lane_width)
+        )
+        self.car: int | None = None
+        self.walker: int | None = None
+        self._walk: WalkerController | None = None
+        trigger_time = 2.15 + 0.1 * math.floor(self.crossing_angle / 5.0)
+        self._tta = TimeToArrivalTrigger(self.collision_waypoint.transform.location, trigger_time,
+                                         self.min_trigger_distance)  # fmt: skip
+        self._removed = False
+        self._after = DriveDistance(self.end_distance)
+
+    def build(self) -> None:
+        """The parked car in the parking lane."""
+        transform = offset_transform(self.parking, z=0.05)
+        retries = [offset_transform(self.parking, forward=f, z=0.05) for f in (-1.0, 1.0)]
+        self.car = self.spawn(self.car_model, transform, retries=retries)
+        park(self.ctx.sim, self.car)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Keep the background away from the crossing."""
+        self.ctx.sim.background.leave_space_in_front(self.distance + self.clear_extra)
+
+    def _spawn_walker(self) -> None:
+        yaw = 270.0 - self.crossing_angle if self.direction == "right" else 90.0 + self.crossing_angle
+        base = self.collision_waypoint
+        candidates = [
+            offset_transform(base, lateral=self.walker_lateral, forward=f, z=1.0, yaw=yaw) for f in (0.0, 0.4, 0.8, 1.2)
+        ]
+        self.walker = self.spawn(random_walker(self.ctx.rng), candidates[0], retries=candidates[1:])
+        heading = math.radians(base.transform.rotation.yaw + yaw)
+        self._walk = WalkerController(
+            self.ctx.sim, self.walker, Vector3D(math.cos(heading), math.sin(heading), 0.0), self.walker_speed,
+            self.walk_distance,
+        )  # fmt: skip
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """TTA trigger → walk 8 m → remove → 40 m more."""
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        if self._walk is None:
+            if self._tta.check(ego):
+                self._spawn_walker()
+            return ScenarioStatus.RUNNING
+        if not self._removed:
+            self._walk.run_step(snapshot)
+            if not self._walk.done:
+                return ScenarioStatus.RUNNING
+            self._removed = True
+            for actor_id in (self.walker, self.car):
+                if actor_id is not None:
+                    self.destroy(actor_id)
+        return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING

@@ -162,6 +162,10 @@ def _multi_lane_left(wp: Waypoint) -> bool:
     return is_driving(wp) and same_direction_driving_neighbour(wp, "left") is not None
 
 
+def _multi_lane_right(wp: Waypoint) -> bool:
+    return is_driving(wp) and same_direction_driving_neighbour(wp, "right") is not None
+
+
 def _multi_lane_rightmost(wp: Waypoint) -> bool:
     return _multi_lane_left(wp) and is_outermost_driving(wp, "right")
 
@@ -225,14 +229,18 @@ def _parking_slot(town: Map, wp: Waypoint) -> bool:
     return True
 
 
-def _parking_ahead(town: Map, wp: Waypoint) -> bool:
-    """A parking lane on the right where the car and the pedestrian stand (34–52 m after the trigger)."""
-    for distance in (34.0, 40.0, 46.0, 52.0):
-        ahead = move_along(wp, distance, step=2.0)
-        parking = ahead.get_right_lane() if ahead is not None else None
-        if parking is None or not parking.lane_type & LaneType.PARKING:
-            return False
-    return True
+def _parking_ahead(distances: Sequence[float]) -> Callable[[Map, Waypoint], bool]:
+    """A parking lane on the right at each of ``distances`` m after the trigger."""
+
+    def check(town: Map, wp: Waypoint) -> bool:
+        for distance in distances:
+            ahead = move_along(wp, distance, step=2.0)
+            parking = ahead.get_right_lane() if ahead is not None else None
+            if parking is None or not parking.lane_type & LaneType.PARKING:
+                return False
+        return True
+
+    return check
 
 
 def _red_light_runner(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
@@ -318,7 +326,12 @@ LAYOUTS: dict[str, Layout] = {
         "crossing entry", turns=("straight", "left"), signalized=False, junction_extra=_red_light_runner),
     "ParkingCrossingPedestrian": Layout("parking_lane", "rightmost lane with a parking lane on the right 34–52 m "
                                         "ahead, 100 m junction-free", _rightmost, clear_after=100.0,
-                                        extra=_parking_ahead, max_turn=STRAIGHTISH),
+                                        extra=_parking_ahead((34.0, 40.0, 46.0, 52.0)), max_turn=STRAIGHTISH),
+    "ParkingCutIn": Layout("parking_lane", "rightmost lane with a parking lane on the right 24–40 m ahead, 100 m "
+                           "junction-free", _rightmost, clear_after=100.0, pre=(12.0, 14.0),
+                           extra=_parking_ahead((24.0, 28.0, 32.0, 36.0, 40.0)), max_turn=STRAIGHTISH),
+    "StaticCutIn": Layout("multi_lane", "two same-direction lanes (ego on the left one), 130 m junction-free",
+                          _multi_lane_right, clear_after=130.0, max_turn=STRAIGHTISH),
     "ControlLoss": Layout("road", "any driving lane, 115 m junction-free", _any_lane, clear_after=115.0,
                           length=130.0),
     "PedestrianCrossing": Layout(
@@ -515,6 +528,10 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "direction": _value("right"),
             "crossing_angle": _value(_int(rng, 0, 12)),
         }
+    if scenario_type == "ParkingCutIn":
+        return {"direction": _value("right")}
+    if scenario_type == "StaticCutIn":
+        return {"distance": _value(_int(rng, 40, 45)), "direction": _value("right")}
     # Junction flows: the slower, sparser part of §2.2's ranges. The expert turns through a gap only when no flow
     # car's 2 s forecast meets its own; denser or faster flows (down to 1 s headways) leave it waiting for good.
     if scenario_type == "SignalizedJunctionLeftTurn":

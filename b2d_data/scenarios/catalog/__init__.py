@@ -3,6 +3,7 @@
 from b2d_data.scenarios.catalog.blocked_intersection import BlockedIntersection
 from b2d_data.scenarios.catalog.control_loss import ControlLoss
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
+from b2d_data.scenarios.catalog.cut_ins import ParkingCutIn, StaticCutIn
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
 from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
@@ -29,6 +30,6 @@ __all__ = [
 ]
 __all__ += [
     "BlockedIntersection", "ControlLoss", "OppositeVehicleTakingPriority", "ParkingCrossingPedestrian",
-    "PedestrianCrossing", "TJunction", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight",
+    "ParkingCutIn", "PedestrianCrossing", "StaticCutIn", "TJunction", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight",
     "VehicleTurningRoute", "VehicleTurningRoutePedestrian",
 ]  # fmt: skip

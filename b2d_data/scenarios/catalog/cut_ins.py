@@ -1,0 +1,248 @@
+"""ParkingCutIn and StaticCutIn (§2.2 #3, #4): a car pulls into the ego's lane just in front of it.
+
+ParkingCutIn: a blocker car parked 28 m ahead and the cut-in car 35 m ahead, both in the ``direction``-side
+parking lane pushed toward its outer edge (hand brake). At the trigger the background clears 45 m ahead; when the
+ego's time to arrival at the cut-in car drops below 2.35 s (or within 10 m) it pulls out at 20 km/h into the ego's
+lane (stopping for vehicles in its way, ignoring lights) and drives 30 m; then both cars are removed and the
+background gets 20 m extra space.
+
+StaticCutIn: a queue of six stopped cars 11 m apart in the ``direction``-side lane from ``distance`` m ahead, the
+third one the cut-in car (hidden until the trigger, when the background clears distance + 66 m ahead and leaves
+that lane). When the ego's time to arrival at the cut-in car drops below 2.7 s (or within 15 m) it pulls into the
+ego's lane in 3 s (within 9 m, so as to clear the queued car ahead of it), drives 2 s more at the ego's speed, then
+follows the lane for 70 m at 60 km/h. The background gets 30 m extra space.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from b2d_data.maps import LaneType, Waypoint
+from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
+from b2d_data.scenarios.catalog.road_geometry import (
+    lane_walk,
+    move_along,
+    neighbour,
+    offset_transform,
+    same_direction_driving_neighbour,
+)
+from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import TimeToArrivalTrigger
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+def _lateral(a: Waypoint, b: Waypoint) -> float:
+    """Signed lateral offset (m, + right of ``a``'s heading) of ``b``'s centre from ``a``'s centre."""
+    r = math.radians(a.transform.rotation.yaw)
+    dx = b.transform.location.x - a.transform.location.x
+    dy = b.transform.location.y - a.transform.location.y
+    return -math.sin(r) * dx + math.cos(r) * dy
+
+
+def merge_track(
+    lane: Waypoint, start_lateral: float, merge_length: float, total: float, ease_in: bool = True
+) -> PathTrack:
+    """A path along ``lane`` starting ``start_lateral`` m to its side and reaching its centre after ``merge_length``
+    m, ``total`` m long: smoothstep, or (``ease_in=False``) leaving the side fast, so as to clear a car stopped
+    just ahead in the side lane."""
+    rows = []
+    for k, wp in enumerate(lane_walk(lane, total)):
+        u = min(1.0, k / max(merge_length, 1e-6))
+        left = 1.0 - (3.0 * u * u - 2.0 * u * u * u) if ease_in else (1.0 - u) ** 2
+        offset = start_lateral * left
+        t = offset_transform(wp, lateral=offset)
+        rows.append((t.location.x, t.location.y, t.location.z))
+    return PathTrack(np.array(rows))
+
+
+def _direction(ctx: ScenarioContext, name: str) -> str:
+    direction = ctx.text("direction", "right")
+    if direction not in ("left", "right"):
+        raise ScenarioSetupError(f"{name}: direction must be 'left' or 'right', got {direction!r}")
+    return direction
+
+
+@register
+class ParkingCutIn(Scenario):
+    """A parked car pulls out in front of the ego."""
+
+    xml_type = "ParkingCutIn"
+    scenario_timeout = None
+    timeout_test = False
+    blocker_distance = 28.0
+    cut_in_distance = 35.0
+    adversary_speed = 20.0 / 3.6
+    drive_distance = 30.0
+    merge_length = 10.0
+    sync_time = 2.35
+    min_trigger_distance = 10.0
+    front_clear = 45.0
+    extra_space = 20.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.direction = _direction(ctx, self.name)
+        self.sign = 1.0 if self.direction == "right" else -1.0
+        self.slots: list[tuple[Waypoint, Waypoint]] = []  # (driving lane, parking lane)
+        for d in (self.blocker_distance, self.cut_in_distance):
+            lane = move_along(self.trigger_waypoint, d)
+            parking = neighbour(lane, self.direction) if lane is not None and not lane.is_junction else None
+            if parking is None or not parking.lane_type & LaneType.PARKING:
+                raise ScenarioSetupError(
+                    f"{self.name}: layout 'parking_lane' missing: no parking lane to the {self.direction} "
+                    f"{d:.0f} m after the trigger point"
+                )
+            self.slots.append((lane, parking))
+        self.models = [random_parked_car(ctx.rng) for _ in self.slots]
+        lane, parking = self.slots[1]
+        self.cut_in_lateral = _lateral(lane, parking) + self._push(parking, self.models[1])
+        self.track = merge_track(lane, self.cut_in_lateral, self.merge_length, self.drive_distance)
+        self._tta = TimeToArrivalTrigger(lane.transform.location, self.sync_time, self.min_trigger_distance)
+        self.cars: list[int] = []
+        self._agent: ConstantVelocityAgent | None = None
+        self._finished = False
+
+    def _push(self, parking: Waypoint, model: str) -> float:
+        """Lateral push (signed) toward the parking lane's outer edge."""
+        return self.sign * (parking.lane_width - half_extent(model)[1]) / 4.0
+
+    def build(self) -> None:
+        """The two parked cars."""
+        for (lane, parking), model in zip(self.slots, self.models):
+            lateral = _lateral(lane, parking) + self._push(parking, model)
+            transforms = [offset_transform(lane, lateral=lateral, forward=f, z=0.05) for f in (0.0, 1.0, -1.0)]
+            car = self.spawn(model, transforms[0], retries=transforms[1:])
+            park(self.ctx.sim, car)
+            self.cars.append(car)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the road in front of the ego."""
+        self.ctx.sim.background.leave_space_in_front(self.front_clear)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """TTA trigger → pull out and drive 30 m → remove both cars → SUCCESS."""
+        ego = self.ctx.ego(snapshot)
+        if ego is None or len(self.cars) < 2:
+            return ScenarioStatus.RUNNING
+        if self._agent is None:
+            if not self._tta.check(ego):
+                return ScenarioStatus.RUNNING
+            log.debug("%s: the cut-in car pulls out", self.name)
+            self._agent = ConstantVelocityAgent(
+                self.ctx.sim, self.cars[1], self.track, self.adversary_speed, detect_vehicles=True,
+                ignore=[self.cars[0]],
+            )  # fmt: skip
+        self._agent.run_step(snapshot)
+        if self._agent.done or self._agent.travelled >= self.drive_distance:
+            for car in self.cars:
+                self.destroy(car)
+            self.cars = []
+            self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+
+@register
+class StaticCutIn(Scenario):
+    """A car of a stopped queue in the next lane cuts into the ego's lane."""
+
+    xml_type = "StaticCutIn"
+    # LB2.0's 30 s is the class's legacy timeout, not a ScenarioTimeout behaviour with its test
+    scenario_timeout = None
+    timeout_test = False
+    queue_gap = 11.0
+    queue_before = 2
+    queue_after = 3
+    change_time = 3.0
+    #: The car pulls out of the queue within this many metres: the next queued car stands 11 m ahead of it.
+    merge_length = 9.0
+    keep_time = 2.0
+    final_speed = 60.0 / 3.6
+    final_distance = 70.0
+    sync_time = 2.7
+    min_trigger_distance = 15.0
+    clear_extra = 66.0
+    extra_space = 30.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.direction = _direction(ctx, self.name)
+        self.distance = ctx.value("distance", 100.0)
+        side = same_direction_driving_neighbour(self.trigger_waypoint, self.direction)
+        if side is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'multi_lane' missing: no same-direction lane to the {self.direction} at the "
+                "trigger point"
+            )
+        self.side_lane = side
+        self.spots: list[Waypoint] = []
+        count = self.queue_before + 1 + self.queue_after
+        for k in range(count):
+            wp = move_along(side, self.distance + k * self.queue_gap)
+            if wp is None or wp.is_junction:
+                raise ScenarioSetupError(
+                    f"{self.name}: the {self.direction} lane is not junction-free over the queue "
+                    f"({self.distance:.0f}–{self.distance + (count - 1) * self.queue_gap:.0f} m)"
+                )
+            self.spots.append(wp)
+        cut_in_spot = self.spots[self.queue_before]
+        ego_lane = move_along(self.trigger_waypoint, self.distance + self.queue_before * self.queue_gap)
+        if ego_lane is None or ego_lane.is_junction:
+            raise ScenarioSetupError(f"{self.name}: the ego's lane is not junction-free beside the cut-in car")
+        self.ego_lane = ego_lane
+        self.cut_in_lateral = _lateral(ego_lane, cut_in_spot)
+        self.models = [random_parked_car(ctx.rng) for _ in self.spots]
+        self._tta = TimeToArrivalTrigger(cut_in_spot.transform.location, self.sync_time, self.min_trigger_distance)
+        self.cars: list[int] = []
+        self._agent: ConstantVelocityAgent | None = None
+        self._t0: float | None = None
+        self._phase = 0
+        self._ego_speed = 0.0
+
+    @property
+    def cut_in(self) -> int | None:
+        """The cut-in car's actor id."""
+        return self.cars[self.queue_before] if len(self.cars) > self.queue_before else None
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the road ahead, take the side lane from the background, show the queue."""
+        bg = self.ctx.sim.background
+        bg.leave_space_in_front(self.distance + self.clear_extra)
+        bg.remove_road_lane(self.side_lane)
+        for wp, model in zip(self.spots, self.models):
+            transforms = [offset_transform(wp, forward=f, z=0.05) for f in (0.0, 1.0, -1.0)]
+            car = self.spawn(model, transforms[0], retries=transforms[1:])
+            park(self.ctx.sim, car)
+            self.cars.append(car)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """TTA trigger → 3 s lane change + 2 s at the ego's speed → 70 m at 60 km/h → SUCCESS."""
+        ego = self.ctx.ego(snapshot)
+        if ego is None or self.cut_in is None:
+            return ScenarioStatus.RUNNING
+        if self._agent is None:
+            if not self._tta.check(ego):
+                return ScenarioStatus.RUNNING
+            self._ego_speed = max(ego.speed(), 3.0)
+            total = self.merge_length + self._ego_speed * self.keep_time + self.final_distance
+            track = merge_track(self.ego_lane, self.cut_in_lateral, self.merge_length, total, ease_in=False)
+            others = [c for c in self.cars if c != self.cut_in]
+            self._agent = ConstantVelocityAgent(
+                self.ctx.sim, self.cut_in, track, self.merge_length / self.change_time, ignore=others
+            )
+            self._t0 = snapshot.timestamp
+            log.debug("%s: the cut-in car changes lane (ego at %.1f m/s)", self.name, self._ego_speed)
+        elapsed = snapshot.timestamp - (self._t0 if self._t0 is not None else snapshot.timestamp)
+        if self._phase == 0 and elapsed >= self.change_time:
+            self._phase, self._agent.speed = 1, self._ego_speed
+        if self._phase == 1 and elapsed >= self.change_time + self.keep_time:
+            self._phase, self._agent.speed = 2, self.final_speed
+            self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
+        self._agent.run_step(snapshot)
+        return ScenarioStatus.SUCCESS if self._agent.done else ScenarioStatus.RUNNING

@@ -256,8 +256,16 @@ def _red_light_runner(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dic
 
 
 def _sidewalk_at_entry(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
-    """Junction entries with a sidewalk on the right (where PedestrianCrossing's group waits)."""
-    return [{}] if find_side_lane(conn.entry, "right", LaneType.SIDEWALK) is not None else []
+    """Junction entries with a sidewalk on the right and no parking lane before it (where PedestrianCrossing's
+    group waits; parked cars would stop the walkers)."""
+    current = conn.entry
+    while True:
+        right = current.get_right_lane()
+        if right is None or right.lane_id * current.lane_id <= 0 or right.lane_type & LaneType.PARKING:
+            return []
+        if right.lane_type & LaneType.SIDEWALK:
+            return [{}]
+        current = right
 
 
 def _three_arms(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:

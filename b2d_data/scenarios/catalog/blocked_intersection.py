@@ -1,7 +1,7 @@
 """BlockedIntersection (§2.2 #22): a car stands still just after the junction where the ego turns.
 
 At the trigger a car with its brake lights on appears 5 m after the junction exit on the route (physics off); the
-junction is cleared of background traffic and its entries stopped. When the ego comes within 13 m of it, it stays
+junction is cleared of background traffic and its entries stopped, and the route is kept clear up to the blocker. When the ego comes within 13 m of it, it stays
 10 s more and is removed; the scenario then ends. The 240 s ScenarioTimeout applies.
 """
 
@@ -32,6 +32,7 @@ class BlockedIntersection(JunctionScenario):
     blocker_distance = 5.0
     trigger_distance = 13.0
     block_time = 10.0
+    blocker_clearance = 5.0
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -52,6 +53,12 @@ class BlockedIntersection(JunctionScenario):
             clear_junction=True, clear_ego_entry=True, remove_entries=[], remove_exits=[self.blocker_waypoint],
             stop_entries=True, extend_road_exit=0.0,
         )  # fmt: skip
+        # background cars on the route ahead would queue behind the blocker in front of the ego, and the blocker
+        # waits for the ego: keep the route clear up to it
+        route = self.ctx.route
+        blocker_s = route.cumulative_length[route.closest_index(self.blocker_waypoint.transform.location)]
+        ego_s = route.cumulative_length[self.ego_route_point(snapshot)]
+        sim.background.leave_space_in_front(float(blocker_s - ego_s) + self.blocker_clearance)
         transforms = [offset_transform(self.blocker_waypoint, forward=f, z=0.05) for f in (0.0, 1.0, 2.0)]
         self.blocker = self.spawn(random_parked_car(self.ctx.rng), transforms[0], retries=transforms[1:])
         sim.set_simulate_physics(self.blocker, False)

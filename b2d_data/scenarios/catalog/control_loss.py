@@ -1,6 +1,6 @@
 """ControlLoss (§2.2 #1): the ego loses grip over three patches of dirt debris.
 
-Three flat debris props (no collision) lie on the route lane 14, 48 and 74 m after the trigger. From the moment
+Three flat debris props (no collision) lie on the lane 14, 48 and 74 m after the trigger point. From the moment
 the ego is within 2 m of a patch until it is 2 m past it, every tick's control of the ego gets noise: throttle +=
 N(±0.03, 0.01) and steer += N(±0.055, 0.015), the signs drawn at random per patch. The scenario ends when the
 ego has driven 110 m after the trigger. Only the route criteria apply.
@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, horizontal_distance
+from b2d_data.format.transform import Location, Transform
 from b2d_data.sim.api import Snapshot, VehicleControl
 
 log = logging.getLogger(__name__)
@@ -24,13 +25,19 @@ DEBRIS_MODELS = ("static.prop.dirtdebris01", "static.prop.dirtdebris02", "static
 
 @dataclass
 class _Patch:
-    """One debris patch: its route position and the noise it causes."""
+    """One debris patch: where it lies and the noise it causes."""
 
-    route_s: float
+    transform: Transform
     throttle_mean: float
     steer_mean: float
     active: bool = False
     passed: bool = False
+
+    def ahead_of(self, location: Location) -> float:
+        """How far (m) ``location`` lies beyond the patch along the lane."""
+        f = self.transform.get_forward_vector()
+        loc = self.transform.location
+        return f.x * (location.x - loc.x) + f.y * (location.y - loc.y)
 
 
 @register
@@ -48,46 +55,37 @@ class ControlLoss(Scenario):
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        route = ctx.route
-        s0 = float(route.cumulative_length[self.trigger_index])
-        self.debris_waypoints = []
-        for d in self.debris_distances:
-            if s0 + d > route.total_length:
-                raise ScenarioSetupError(f"{self.name}: the route ends before the debris {d:.0f} m after the trigger")
-            index = min(int(route.cumulative_length.searchsorted(s0 + d)), len(route.waypoints) - 1)
-            self.debris_waypoints.append(route.waypoints[index])
         self.patches: list[_Patch] = []
         for d in self.debris_distances:
+            wp = move_along(self.trigger_waypoint, d)
+            if wp is None:
+                raise ScenarioSetupError(f"{self.name}: the lane ends before the debris {d:.0f} m after the trigger")
             signs = ctx.rng.choice([-1.0, 1.0], size=2)
             self.patches.append(
-                _Patch(s0 + d, float(signs[0]) * self.throttle_noise[0], float(signs[1]) * self.steer_noise[0])
+                _Patch(wp.transform, float(signs[0]) * self.throttle_noise[0], float(signs[1]) * self.steer_noise[0])
             )
         self.debris: list[int] = []
         self._after = DriveDistance(self.end_distance)
-        self._ego_s = s0
 
     def build(self) -> None:
         """The three debris patches on the lane."""
-        for k, wp in enumerate(self.debris_waypoints):
+        for patch in self.patches:
             model = DEBRIS_MODELS[int(self.ctx.rng.integers(len(DEBRIS_MODELS)))]
-            retries = [offset_transform(wp, forward=f, z=0.01) for f in (0.5, -0.5)]
-            self.debris.append(self.spawn(model, offset_transform(wp, z=0.01), retries=retries))
-            log.debug("%s: debris %d at route s=%.1f", self.name, k, self.patches[k].route_s)
+            retries = [offset_transform(patch.transform, forward=f, z=0.01) for f in (0.5, -0.5)]
+            self.debris.append(self.spawn(model, offset_transform(patch.transform, z=0.01), retries=retries))
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Switch the noise on near a patch and off 2 m past it; SUCCESS after 110 m."""
         ego = self.ctx.ego(snapshot)
         if ego is None:
             return ScenarioStatus.RUNNING
-        self._ego_s = float(self.ctx.route.cumulative_length[self.ctx.route.closest_index(ego.location)])
-        for patch, wp in zip(self.patches, self.debris_waypoints):
+        for patch in self.patches:
             if patch.passed:
                 continue
-            near = horizontal_distance(ego.location, wp.transform.location) < self.trigger_distance
-            if not patch.active and near:
+            if not patch.active and horizontal_distance(ego.location, patch.transform.location) < self.trigger_distance:
                 patch.active = True
-                log.debug("%s: noise on at route s=%.1f", self.name, self._ego_s)
-            if patch.active and self._ego_s > patch.route_s + self.trigger_distance and not near:
+                log.debug("%s: noise on at (%.1f, %.1f)", self.name, ego.location.x, ego.location.y)
+            if patch.active and patch.ahead_of(ego.location) > self.trigger_distance:
                 patch.active, patch.passed = False, True
         return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
 

@@ -1,6 +1,6 @@
 """One tiny clip of each issue-14 scenario type (and a NoScenario clip) collected from a route file and loaded.
 
-The generated routes of the default town are cut to ~16–30 m around the scenario's place (the junction, or the
+The generated routes of the default town are cut to ~12–35 m around the scenario's place (the junction, or the
 trigger point) so that each clip takes seconds.
 """
 
@@ -30,26 +30,26 @@ TINY = ["--width", "32", "--height", "18", "--lidar-azimuth-steps", "45", "--enc
 
 
 def _short(route: Route) -> Route:
-    """The route cut to a few metres around its scenario's place, the trigger moved onto the cut route's start.
+    """The route cut to a few metres around its scenario's place.
 
-    Junction routes keep 12 m before the junction and 4 m after it (keypoints skip the junction: the first gap
-    wider than 3 m); the others keep 6 m before and 10 m after the trigger point.
+    Junction routes keep 16 m before the junction and 2–4 m after it (keypoints skip the junction: the first gap
+    wider than 3 m), their trigger moved onto the cut route's start; OppositeVehicleTakingPriority keeps its whole
+    approach (the crossing car must come in time). The others keep 4 m before and 8 m after the trigger point.
     """
     points = route.waypoints
-    gaps = [k for k in range(len(points) - 1) if points[k].distance_2d(points[k + 1]) > 3]
-    if gaps and (not route.scenarios or LAYOUTS[route.scenario_type].is_junction):
-        keep = points[max(0, gaps[0] - 6) : gaps[0] + 3]
-    else:
-        t = route.scenarios[0].trigger_point.location
+    gaps = [k for k in range(len(points) - 1) if points[k].distance_2d(points[k + 1]) > 3.0]
+    scenario = route.scenarios[0] if route.scenarios else None
+    if scenario is not None and not LAYOUTS[scenario.type].is_junction:
+        t = scenario.trigger_point.location
         k = min(range(len(points)), key=lambda i: math.hypot(points[i].x - t.x, points[i].y - t.y))
-        keep = points[max(0, k - 3) : k + 6]
-    if not route.scenarios:
+        return replace(route, waypoints=points[max(0, k - 2) : k + 5])
+    first = 0 if scenario is not None and scenario.type == "OppositeVehicleTakingPriority" else max(0, gaps[0] - 8)
+    keep = points[first : gaps[0] + 3]
+    if scenario is None or first == 0:
         return replace(route, waypoints=keep)
     yaw = math.degrees(math.atan2(keep[1].y - keep[0].y, keep[1].x - keep[0].x))
     trigger = Transform(Location(keep[0].x, keep[0].y, keep[0].z), Rotation(yaw=yaw))
-    if not LAYOUTS[route.scenario_type].is_junction:
-        trigger = route.scenarios[0].trigger_point
-    return replace(route, waypoints=keep, scenarios=(replace(route.scenarios[0], trigger_point=trigger),))
+    return replace(route, waypoints=keep, scenarios=(replace(scenario, trigger_point=trigger),))
 
 
 @pytest.fixture(scope="module")

@@ -210,15 +210,15 @@ class ProgressLine:
         if p.result is not None and p.result.status != "clip":
             self.failures += 1
             self._write(f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}")
-        if not self.enabled:
-            return
         with self._lock:
+            self._last, self._last_at = p, self.clock()
+            if not self.enabled:
+                return
             if self.bar is None:
                 self.bar = tqdm(total=p.requested, initial=p.clips, desc=PROG, dynamic_ncols=True,
                                 bar_format=self.BAR_FORMAT, file=sys.stderr)  # fmt: skip
                 self._ticker = threading.Thread(target=self._tick, name="b2d-collect-progress", daemon=True)
                 self._ticker.start()
-            self._last, self._last_at = p, self.clock()
             self._draw()
 
     def text(self) -> str:

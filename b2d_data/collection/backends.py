@@ -9,6 +9,8 @@ from __future__ import annotations
 import logging
 import os
 import queue
+import signal
+import time
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as wait_futures
@@ -30,6 +32,9 @@ from b2d_data.collection.plan import CollectError, RouteTask
 from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
 log = logging.getLogger(__name__)
+
+#: Seconds an interrupted collection gives its workers to drop their routes and exit cleanly before killing them.
+ABANDON_GRACE = 15.0
 
 
 class Backend(Protocol):
@@ -102,11 +107,19 @@ class InlineBackend:
         shutdown_encoders()
 
 
+def _leave(signum: int, frame: object) -> None:
+    """SIGTERM in a pool worker: unwind (the route's writer and simulator clean up), then exit normally."""
+    raise SystemExit(0)
+
+
 def _worker_init(log_level: int, driver_pid: int, reports: Any) -> None:
     """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), leave Ctrl-C to the
-    driver, quiet logging, frame reports into the driver's queue."""
+    driver and stop cleanly on its SIGTERM, quiet logging, frame reports into the driver's queue."""
     exit_with_parent(driver_pid)
     ignore_interrupts()
+    # An exit through the interpreter (not the default SIGTERM death) releases the worker's semaphores and shared
+    # memory; otherwise the resource tracker reports them as leaked.
+    signal.signal(signal.SIGTERM, _leave)
     logging.basicConfig(level=log_level, format="%(levelname)s %(name)s [%(process)d]: %(message)s")
     logging.getLogger().setLevel(log_level)
     # Never wait at exit for reports the driver will not read (it may be gone).
@@ -187,13 +200,25 @@ class ProcessPoolBackend:
     def close(self, abandon: bool = False) -> None:
         """Shut the pool down; queued tasks are cancelled, running ones awaited unless ``abandon`` (then killed)."""
         if abandon:
-            # A route can run for minutes: stop its worker now (its half-written clip is removed on resume).
-            processes = getattr(self._pool, "_processes", None) or {}
-            for process in list(processes.values()):
-                process.terminate()
-        self._pool.shutdown(wait=True, cancel_futures=True)
+            self._abandon()
+        else:
+            self._pool.shutdown(wait=True, cancel_futures=True)
         self._reports.close()
         self._reports.join_thread()
+
+    def _abandon(self) -> None:
+        """Stop the workers now (a route can run for minutes): SIGTERM drops their routes, a late one is killed."""
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        for process in processes:
+            process.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        deadline = time.monotonic() + ABANDON_GRACE
+        for process in processes:
+            process.join(timeout=max(deadline - time.monotonic(), 0.0))
+            if process.is_alive():
+                log.warning("worker %d did not stop within %.0f s; killing it", process.pid, ABANDON_GRACE)
+                process.kill()
+                process.join(timeout=5.0)
 
 
 def make_backend(out: Path, config: CollectConfig, on_frames: FrameSink | None = None) -> Backend:

@@ -114,6 +114,9 @@ class ProgressState:
 
     def __post_init__(self) -> None:
         self.started = self.clock()
+        # (time, frames) at the first frame report: the frame rate is measured from there, leaving out the one-off
+        # start (town generation, HD map) that would otherwise inflate the first ETAs.
+        self._rate_origin: tuple[float, int] | None = None
 
     def elapsed(self) -> float:
         """Seconds since this session started."""
@@ -131,9 +134,13 @@ class ProgressState:
         route.clip = report.clip or route.clip
         route.frames = max(route.frames, report.frames)
         route.completion = max(route.completion, report.completion)
+        if self._rate_origin is None:
+            self._rate_origin = (self.clock(), self.frames_this_run())
 
     def route_finished(self, route_id: str, frames: int, clip: bool) -> None:
         """A route's attempt ended with ``frames`` recorded; ``clip`` when it made a clip."""
+        if self._rate_origin is None:
+            self._rate_origin = (self.clock(), self.frames_this_run())
         route = self.running.pop(str(route_id), None)
         frames = max(frames, route.frames if route is not None else 0)
         self.finished_frames.append(frames)
@@ -157,19 +164,26 @@ class ProgressState:
         """Frames recorded in this session so far, running routes included."""
         return self.frames_done + sum(r.frames for r in self.running.values())
 
+    def frame_rate(self) -> float | None:
+        """Frames per second of this session since its first frame report (None before two reports)."""
+        if self._rate_origin is None:
+            return None
+        since, frames_then = self._rate_origin
+        seconds, frames = self.clock() - since, self.frames_this_run() - frames_then
+        return frames / seconds if seconds > 0 and frames > 0 else None
+
     def eta(self) -> float | None:
         """Seconds left: the frames still to record over this session's frame rate (None before any estimate)."""
         typical = self.typical_frames()
-        frames = self.frames_this_run()
-        elapsed = self.elapsed()
-        if typical is None or frames <= 0 or elapsed <= 0:
+        rate = self.frame_rate()
+        if typical is None or rate is None:
             return None
         left = sum(max((r.expected_frames(typical) or typical) - r.frames, 0.0) for r in self.running.values())
         clips_needed = max(self.requested - self.clips - len(self.running), 0)
         # Failed attempts cost frames too: each clip still needed takes as many attempts as the clips so far did.
         attempts_per_clip = self.attempts / self.clips if self.clips else 1.0
         left += clips_needed * attempts_per_clip * typical
-        return left * elapsed / frames
+        return left / rate
 
     def routes(self) -> tuple[RouteProgress, ...]:
         """Copies of the running routes, in launch order."""

@@ -239,19 +239,33 @@ def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeo
     return helpers
 
 
-def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path):
+def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(
+    collection, short_routes, tmp_path, capsys
+):
     out = tmp_path / "data"
     out.mkdir()
     shutil.copytree(collection / "maps", out / "maps")  # the HD-map export is tested above; skip its 5 s here
     args = _args(short_routes, out, "--encode-workers", "1")  # with an encoder process, which must die too
     helpers = _kill_mid_collection(args, out)
     assert len(_clips(out)) == 1 and _temporaries(out), "expected one clip and one half-written clip"
+    half_written = sorted(str(p.relative_to(out)) for p in out.glob(".*.tmp-*"))
     before = rl.read_run_log(out / rl.LOG_FILE)
     assert len(rl.interrupted_routes(before)) == 1
+    killed_route = rl.interrupted_routes(before)[0]
     _assert_all_exit(helpers)
 
     assert main(args) == 2  # a used folder needs --resume
+    capsys.readouterr()
     assert main([*args, "--resume"]) == 0
+    # The resume says what it kept and what it threw away, and the run log records both.
+    err = capsys.readouterr().err
+    assert "resume: kept 1 complete clip(s) from 1 finished attempt(s)" in err, err
+    assert f"discarded {len(half_written)} half-written" in err and f"run again: {killed_route}" in err, err
+    log_records = rl.read_run_log(out / rl.LOG_FILE)
+    discarded = [r for r in log_records if r["event"] == rl.EVENT_DISCARDED]
+    assert sorted(r["path"] for r in discarded) == half_written
+    interrupted = [r for r in log_records if r["event"] == rl.EVENT_INTERRUPTED]
+    assert [(r["route_id"], r["detected"]) for r in interrupted] == [(killed_route, "on resume")]
 
     clips = _clips(out)
     assert len(clips) == N
@@ -303,10 +317,21 @@ def test_run_log_skips_a_line_cut_by_a_crash(tmp_path):
 
 
 def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection, short_routes, tmp_path):
+    from b2d_data.cli.collect import _config, build_parser
+    from b2d_data.collection.progress import frames_of
+    from b2d_data.collection.runner import collect
+
     out = tmp_path / "records"
-    assert main([*_args(short_routes, out), "--no-sensors", "--workers", "2"]) == 0
+    reports = []
+    summary = collect(_config(build_parser().parse_args([*_args(short_routes, out), "--no-sensors", "--workers", "2"])),
+                      reports.append)  # fmt: skip
+    assert summary.complete
     assert not _clips(out)
     finals = rl.final_records(rl.read_run_log(out / rl.LOG_FILE))
+    # The workers' frame reports reached the driver while their routes ran.
+    for r in finals:
+        seen = [route.frames for p in reports for route in p.routes if route.route_id == r["route_id"]]
+        assert seen and 0 < max(seen) <= frames_of(r["ticks"], 0), (r["route_id"], seen)
     assert len({r["pid"] for r in finals}) >= 1 and all(r["frames"] == 0 for r in finals)
     reference = {r["route_id"]: r for r in rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))}
     for r in finals:
@@ -363,6 +388,49 @@ def test_resume_adopts_what_reached_the_disk_before_a_crash(tmp_path):
     assert finals["2"]["status"] == "failed" and finals["2"]["clip_path"] == f"failed/{kept_failed}"
     assert not (out / kept_failed).exists() and (out / "failed" / kept_failed).is_dir()
     assert not (out / lost).exists()
+
+
+@pytest.mark.parametrize(
+    "how", ["ctrl-c on two workers", "kill (SIGTERM) in this process"], ids=["sigint-pool", "sigterm-inline"]
+)
+def test_interrupting_prints_no_traceback_and_records_the_routes(collection, short_routes, tmp_path, how):
+    """Ctrl-C reaches every process of the terminal's group; kill only the driver. Both end quietly."""
+    out = tmp_path / "data"
+    out.mkdir()
+    shutil.copytree(collection / "maps", out / "maps")
+    ctrl_c = how.startswith("ctrl-c")
+    args = _args(short_routes, out, "--encode-workers", "1", *(["--workers", "2"] if ctrl_c else []))
+    stderr_path = tmp_path / "stderr.txt"
+    with open(stderr_path, "wb") as stderr:
+        proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], stdout=subprocess.DEVNULL,
+                                stderr=stderr, start_new_session=True)  # fmt: skip
+        helpers: set[int] = set()
+        try:
+            deadline = time.monotonic() + 240
+            while time.monotonic() < deadline and proc.poll() is None:
+                helpers |= _descendants(proc.pid)
+                if [p for p in out.glob(".*.tmp-*") if p.is_dir() and len(list(p.glob("anno/*.json.gz"))) >= 3]:
+                    break
+                time.sleep(0.05)
+            helpers |= _descendants(proc.pid)
+            assert proc.poll() is None, "the collection ended before it could be interrupted"
+            if ctrl_c:
+                os.killpg(proc.pid, signal.SIGINT)
+            else:
+                os.kill(proc.pid, signal.SIGTERM)
+            assert proc.wait(timeout=60) == 130
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    err = stderr_path.read_text()
+    assert "Traceback" not in err and "leaked semaphore" not in err, err
+    assert err.strip().splitlines()[-1] == "b2d-collect: interrupted; run the same command with --resume to finish"
+    _assert_all_exit(helpers)
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    interrupted = [r["route_id"] for r in records if r["event"] == rl.EVENT_INTERRUPTED]
+    assert interrupted and sorted(interrupted) == sorted(rl.interrupted_routes(records))
+    assert all(r["detected"] == "on interrupt" for r in records if r["event"] == rl.EVENT_INTERRUPTED)
 
 
 def _assert_all_exit(pids: set[int], timeout: float = 10.0) -> None:

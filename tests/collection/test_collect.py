@@ -125,6 +125,20 @@ def test_collects_exactly_n_clips_that_load(collection):
         assert read_jpeg(clip / "camera" / "rgb_top_down" / f"{n - 1:05d}.jpg").shape == (36, 64, 3)
 
 
+def test_eval_summary_of_the_collection_scores_its_own_routes(collection, tmp_path, capsys):
+    """``b2d-eval summary OUT/results``, as ``b2d-collect --help`` suggests: over the N routes run, not 220."""
+    from b2d_data.cli.eval import main as eval_main
+
+    out = tmp_path / "summary.json"
+    assert eval_main(["summary", str(collection / "results"), "--out", str(out)]) == 0
+    data = json.loads(out.read_text())["result_sets"][0]
+    finals = rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))
+    assert len(finals) == N and data["expected_routes"] == N
+    assert data["driving_score"] == pytest.approx(sum(r["score_composed"] for r in finals) / N)
+    assert data["success_rate"] == pytest.approx(100.0)  # both attempts made clips
+    assert f"[results] {N}: b2d-collect collection" in capsys.readouterr().out
+
+
 def _resimulate(collection: Path, clip: Path, short_routes) -> list[dict]:
     """Run the clip's route again without sensors, recording the simulator state at every recorded tick."""
     from b2d_data.expert import Expert, ExpertConfig

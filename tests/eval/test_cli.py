@@ -115,8 +115,11 @@ def test_vad_summary(b2d_data_dir, tmp_path, capsys):
     assert rows["Efficiency (%)"] == ["157.95"]
     assert "7 missing route(s) count 0" in printed
     assert "pass --routes" in printed and not out.with_name("vad_abilities.png").exists()
+    # Leaderboard records (not b2d-collect's): over Bench2Drive's 220 routes, and the output says so.
+    assert "[VAD_merged_results] 220: Bench2Drive's 220 evaluation routes (bench2drive220)" in printed
     data = json.loads(out.read_text())["result_sets"][0]
     assert data["records"] == 213 and data["expected_routes"] == 220 and data["abilities"] is None
+    assert data["expected_routes_reason"].startswith("Bench2Drive's 220 evaluation routes")
 
 
 def _error_line(capsys) -> str:

@@ -44,6 +44,13 @@ def _argument_problem(args: argparse.Namespace) -> str | None:
     return None
 
 
+def _collection_of(results_file: Path) -> tuple[Path, int] | None:
+    """The b2d-collect corpus of a record file and its finished routes (the collection code loads only if asked)."""
+    from b2d_data.collection.corpus import collection_of
+
+    return collection_of(results_file)
+
+
 def _run_summary(args: argparse.Namespace) -> int:
     n_sets = 1 if args.merge else len(args.results)
 
@@ -69,6 +76,7 @@ def _run_summary(args: argparse.Namespace) -> int:
         junctions=MapJunctionProvider(args.maps_dir) if args.maps_dir is not None else None,
         maps_dir=args.maps_dir,
         strict=args.strict,
+        collections=_collection_of,
     )
     metric_dirs: list[Path | None] = [None] * n_sets
     if len(args.metric_dir) == 1:

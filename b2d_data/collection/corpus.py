@@ -248,6 +248,17 @@ def record_interrupted(
         records.append(record)
 
 
+def collection_of(results_file: Path) -> tuple[Path, int] | None:
+    """The corpus that wrote a route-record file (``<root>/results/<file>`` beside a run log) and its number of
+    routes with a finished attempt (each has its record in ``results/``); None for any other file."""
+    folder = Path(results_file).resolve().parent
+    root = folder.parent
+    if folder.name != RESULTS_DIR or not (root / rl.LOG_FILE).is_file():
+        return None
+    finals = rl.final_records(rl.read_run_log(root / rl.LOG_FILE))
+    return root, len({str(r.get("route_id")) for r in finals})
+
+
 def now_iso() -> str:
     """The UTC time in the run log's format."""
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")

@@ -9,6 +9,7 @@ missing route counts 0). That count comes, first match wins, from ``--num-routes
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +23,10 @@ if TYPE_CHECKING:
 #: The ``extra`` key that ``b2d-collect`` puts in each route record it writes.
 COLLECT_EXTRA = "b2d_collect"
 
+#: Given a record file, the ``b2d-collect`` corpus that wrote it and that corpus's routes with a finished attempt,
+#: or None (the CLI passes ``collection.corpus.collection_of``; eval itself does not read collections).
+CollectionLookup = Callable[[Path], "tuple[Path, int] | None"]
+
 
 @dataclass(frozen=True)
 class RouteCount:
@@ -29,26 +34,6 @@ class RouteCount:
 
     value: int
     reason: str
-
-
-def collection_root(path: Path) -> Path | None:
-    """The ``b2d-collect`` corpus that a result file belongs to (``<root>/results/<file>`` beside a run log)."""
-    from b2d_data.collection import run_log as rl
-    from b2d_data.collection.job import RESULTS_DIR
-
-    folder = Path(path).resolve().parent
-    root = folder.parent
-    if folder.name == RESULTS_DIR and (root / rl.LOG_FILE).is_file():
-        return root
-    return None
-
-
-def collection_routes(root: Path) -> int:
-    """Routes of a ``b2d-collect`` corpus with a finished attempt (each has one record in ``results/``)."""
-    from b2d_data.collection import run_log as rl
-
-    finals = rl.final_records(rl.read_run_log(root / rl.LOG_FILE))
-    return len({str(r.get("route_id")) for r in finals})
 
 
 def route_count(result_set: ResultSet, settings: EvalSettings) -> RouteCount:
@@ -59,16 +44,22 @@ def route_count(result_set: ResultSet, settings: EvalSettings) -> RouteCount:
         where = settings.routes_file if settings.routes_file is not None else "the route XML"
         return RouteCount(len(settings.routes), f"the routes of {where}")
     records = result_set.records
+    # One lookup per folder: a collection's results/ holds a file per route.
+    corpora: dict[Path, tuple[Path, int] | None] = {}
+    for path in result_set.sources:
+        folder = Path(path).resolve().parent
+        if folder not in corpora:
+            corpora[folder] = settings.collections(path) if settings.collections is not None else None
+    found = list(corpora.values())
+    if found and None not in found:
+        finished = dict(c for c in found if c is not None)
+        total = sum(finished.values())
+        return RouteCount(
+            max(total, len(records)),
+            f"b2d-collect collection {', '.join(str(r) for r in sorted(finished))}: {total} route(s) with a finished "
+            "attempt in run_log.jsonl",
+        )
     if records and all(isinstance(r.extra.get(COLLECT_EXTRA), dict) for r in records):
-        roots = {collection_root(p) for p in result_set.sources}
-        if None not in roots:
-            known = sorted(r for r in roots if r is not None)
-            finished = sum(collection_routes(r) for r in known)
-            return RouteCount(
-                max(finished, len(records)),
-                f"b2d-collect collection {', '.join(str(r) for r in known)}: {finished} route(s) with a finished "
-                "attempt in run_log.jsonl",
-            )
         return RouteCount(len(records), "b2d-collect records without their run_log.jsonl: one route per record")
     return RouteCount(
         BENCH2DRIVE_ROUTES,

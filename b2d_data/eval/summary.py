@@ -26,7 +26,7 @@ from b2d_data.eval.abilities import (
 from b2d_data.eval.driving_score import DrivingScores, driving_scores
 from b2d_data.eval.efficiency import Efficiency, driving_efficiency, route_efficiency
 from b2d_data.eval.results import EvalInputError, ResultSet
-from b2d_data.eval.route_count import RouteCount, route_count
+from b2d_data.eval.route_count import CollectionLookup, RouteCount, route_count
 from b2d_data.eval.smoothness import Smoothness, driving_smoothness
 from b2d_data.format.leaderboard import GlobalRecord, compute_global_record
 from b2d_data.scenarios.route_xml import Route
@@ -52,6 +52,8 @@ class EvalSettings:
     junctions: JunctionProvider | None = None
     maps_dir: Path | None = None
     strict: bool = False
+    #: Finds the b2d-collect corpus of a record file (None: b2d-collect records count one route each).
+    collections: CollectionLookup | None = None
 
 
 @dataclass

@@ -71,3 +71,15 @@ def test_num_routes_still_overrides_the_collection(tiny_collection, tmp_path, ca
     # 240 points over 10 routes; the 7 routes without a record count 0.
     assert data["expected_routes"] == 10 and data["driving_score"] == pytest.approx(24.0)
     assert "[results] 10: --num-routes" in printed and "7 missing route(s) count 0" in printed
+
+
+def test_a_crashed_jobs_record_still_counts_in_its_collection(tiny_collection, tmp_path, capsys):
+    """The record of a job that crashed carries no b2d_collect key; the collection is found from its folder."""
+    crashed = lb.RouteRecord(route_id=lb.record_route_id(5), status="Failed - Simulation crashed", index=0)
+    write_route_results(tiny_collection, "Accident_Town100_Route5_Weather3", crashed)
+    rl.RunLog(tiny_collection / rl.LOG_FILE).append({"event": "attempt", "route_id": "5", "status": "error"})
+    data, printed = _summary([str(tiny_collection / "results")], tmp_path, capsys)
+    # By hand: (100 + 100 + 40 + 0) / 4 routes.
+    assert data["expected_routes"] == 4 and data["driving_score"] == pytest.approx(60.0)
+    assert data["success_rate"] == pytest.approx(50.0)
+    assert "4 route(s) with a finished attempt" in printed

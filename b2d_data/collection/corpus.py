@@ -238,9 +238,7 @@ def record_discarded(run_log: rl.RunLog, records: list[dict[str, Any]], out: Pat
     return paths
 
 
-def record_interrupted(
-    run_log: rl.RunLog, records: list[dict[str, Any]], route_ids: list[str], detected: str
-) -> None:
+def record_interrupted(run_log: rl.RunLog, records: list[dict[str, Any]], route_ids: list[str], detected: str) -> None:
     """Append an ``interrupted`` record for each route (``detected``: when the interruption was noticed)."""
     for route_id in route_ids:
         record = {"event": rl.EVENT_INTERRUPTED, "route_id": str(route_id), "detected": detected, "time": now_iso()}

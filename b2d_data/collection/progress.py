@@ -8,10 +8,13 @@ reports into a :class:`ProgressState`, which estimates the frames a route takes 
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+
+log = logging.getLogger(__name__)
 
 #: Shortest interval between two frame reports of one route job (the first frame is always reported).
 FRAME_REPORT_SECONDS = 0.5
@@ -48,7 +51,11 @@ class FrameReporter:
     """A route job's frame callback side: forwards its frame count to the process's sink, throttled."""
 
     def __init__(
-        self, route_id: str, clip: str, interval: float = FRAME_REPORT_SECONDS, clock: Callable[[], float] = time.monotonic
+        self,
+        route_id: str,
+        clip: str,
+        interval: float = FRAME_REPORT_SECONDS,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.route_id, self.clip, self.interval, self.clock = route_id, clip, interval, clock
         self._last: float | None = None
@@ -64,8 +71,8 @@ class FrameReporter:
         self._last = now
         try:
             sink(FrameReport(self.route_id, self.clip, int(frames), float(completion)))
-        except Exception:  # noqa: BLE001 - a lost progress report must never fail a route
-            pass
+        except Exception:  # a lost progress report must never fail a route
+            log.debug("route %s: a frame report was lost", self.route_id, exc_info=True)
 
 
 def frames_of(ticks: int, frames: int, record_every: int = 2) -> int:
@@ -195,7 +202,7 @@ def format_seconds(seconds: float | None) -> str:
     """``1:02:03`` / ``02:03`` like tqdm's clock, ``?`` when unknown."""
     if seconds is None or not math.isfinite(seconds):
         return "?"
-    total = int(round(max(seconds, 0.0)))
+    total = round(max(seconds, 0.0))
     hours, rest = divmod(total, 3600)
     minutes, secs = divmod(rest, 60)
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes:02d}:{secs:02d}"

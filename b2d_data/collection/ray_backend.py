@@ -93,7 +93,7 @@ class RayBackend:
             return
         try:
             reports = self._ray.get(self._board.take.remote(), timeout=10)
-        except Exception:  # noqa: BLE001 - progress is best effort; the results still arrive
+        except Exception:  # progress is best effort; the results still arrive
             log.debug("cannot read the frame reports", exc_info=True)
             return
         for report in reports:

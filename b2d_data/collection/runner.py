@@ -272,8 +272,11 @@ class _Session:
         self.requested = sum(self.target.values())
         self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
         mine = set().union(*ids_of.values()) if ids_of else set()
-        self.state.finished_frames = [frames_of(int(r.get("ticks") or 0), int(r.get("frames") or 0)) for r in finals
-                                      if str(r.get("route_id")) in mine and (r.get("ticks") or r.get("frames"))]
+        self.state.finished_frames = [
+            frames_of(int(r.get("ticks") or 0), int(r.get("frames") or 0))
+            for r in finals
+            if str(r.get("route_id")) in mine and (r.get("ticks") or r.get("frames"))
+        ]
         self._last_report: float | None = None
 
     def _clips(self) -> int:
@@ -295,9 +298,9 @@ class _Session:
         if self.progress is None:
             return
         now = self.clock()
-        if not force and result is None and self._last_report is not None:
-            if now - self._last_report < REFRESH_SECONDS:
-                return
+        recent = self._last_report is not None and now - self._last_report < REFRESH_SECONDS
+        if recent and not force and result is None:
+            return
         self._last_report = now
         state = self.state
         typical = state.typical_frames()

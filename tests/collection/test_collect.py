@@ -253,9 +253,7 @@ def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeo
     return helpers
 
 
-def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(
-    collection, short_routes, tmp_path, capsys
-):
+def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path, capsys):
     out = tmp_path / "data"
     out.mkdir()
     shutil.copytree(collection / "maps", out / "maps")  # the HD-map export is tested above; skip its 5 s here

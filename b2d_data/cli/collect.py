@@ -199,7 +199,7 @@ class ProgressLine:
         self.failures = 0
         self._last: Progress | None = None
         self._last_at = 0.0
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # re-entrant: close() may run from an interrupt inside a redraw
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
 
@@ -209,7 +209,8 @@ class ProgressLine:
             self._write(p.resumed.describe())
         if p.result is not None and p.result.status != "clip":
             self.failures += 1
-            self._write(f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}")
+            if self.enabled:
+                self._write(f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}")
         with self._lock:
             self._last, self._last_at = p, self.clock()
             if not self.enabled:

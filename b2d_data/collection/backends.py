@@ -154,7 +154,10 @@ class ProcessPoolBackend:
         while True:
             try:
                 report = self._reports.get_nowait()
-            except (queue.Empty, OSError, ValueError, EOFError):
+            except queue.Empty:
+                return
+            except Exception:  # e.g. a report cut short by a killed worker; progress is best effort
+                log.debug("cannot read a frame report", exc_info=True)
                 return
             if self.on_frames is not None and isinstance(report, FrameReport):
                 self.on_frames(report)

@@ -20,11 +20,15 @@ from b2d_data.codecs import layout
 from b2d_data.codecs.anno_json import read_anno
 from b2d_data.codecs.depth import read_depth_npz, read_depth_png
 from b2d_data.codecs.expert_npz import read_expert, split_expert
+from b2d_data.codecs.format_info import read_format_info
 from b2d_data.codecs.jpeg import read_jpeg
 from b2d_data.codecs.labels_png import read_instance_png, read_semantic_png
 from b2d_data.codecs.laz import read_laz
 from b2d_data.codecs.radar_h5 import RADAR_DATASETS, read_radar
+from b2d_data.format import expert_feature
 from b2d_data.format.errors import B2DFormatError
+from b2d_data.format.expert_actions import action_control
+from b2d_data.format.version import FORMAT_FILE
 from b2d_data.format.names import canonical_clip_prefix
 from b2d_data.format.rig import RADARS_V0, camera
 from b2d_data.loaders.hdmap import find_hdmap, load_hdmap_cached
@@ -95,8 +99,12 @@ class ClipDataset(Dataset):
     - ``future_waypoints`` / ``past_waypoints`` (K, 2), ``future_yaw`` / ``past_yaw`` (K,), ``future_valid`` /
       ``past_valid`` (K,) — ego poses every ``waypoint_stride`` frames, in the current ego frame
     - optional: ``depth`` (C, H, W) float32 m, ``semantic`` (C, H, W) uint8 tags, ``instance`` (C, H, W) uint16
-      ids, ``expert_feature`` / ``expert_value`` / ``expert_action``, ``map_polylines`` (list of (n, 3)) with
-      ``map_types`` (index into MAP_TYPES), ``anno`` (raw dict)
+      ids, ``map_polylines`` (list of (n, 3)) with ``map_types`` (index into MAP_TYPES), ``anno`` (raw dict)
+    - with ``expert=True``: ``expert_feature`` (1536,) float32 (Think2Drive's latent in released clips, the BEV
+      raster of :mod:`b2d_data.format.expert_feature` in ours), ``expert_value``, ``expert_action`` (0–38) and
+      ``expert_control`` [throttle, steer, brake, reverse] that action decodes to (format.md §2.8 table). With
+      ``expert_bev=True`` (implies ``expert``) ``expert_feature`` is the (6, 16, 16) raster instead; a clip whose
+      ``b2d_format.json`` does not record that layout (any released Bench2Drive clip) raises ``B2DFormatError``.
 
     ``index``: ``auto`` reads ``<root>/.b2d_index`` (building it once when absent), ``update`` rescans new or
     changed clips first, ``memory`` never writes, or pass a :class:`CorpusIndex`. HD maps are looked up in
@@ -180,6 +188,7 @@ class ClipDataset(Dataset):
         self._rows = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64)
         self._clip_ids = np.array(sorted(keep), dtype=np.int32)
         self._cv_pid = -1
+        self._expert_bev: dict[int, bool] = {}  # clip → its b2d_format.json records the BEV raster layout
 
     # ------------------------------------------------------------------------------------------ selection
 
@@ -317,18 +326,42 @@ class ClipDataset(Dataset):
         if opts.boxes:
             neighbour, dt = self._neighbour(anno, clip_dir, row, start, length)
             sample.update(box_fields(anno, world2ego, opts, neighbour, dt))
-        if opts.expert:
-            feature, value, action = split_expert(read_expert(layout.expert_path(clip_dir, frame)))
-            sample.update(
-                expert_feature=feature.astype(np.float32),
-                expert_value=np.float32(value),
-                expert_action=np.int64(action),
-            )
+        if opts.expert or opts.expert_bev:
+            sample.update(self._load_expert(clip, clip_dir, frame))
         if opts.map_radius is not None:
             self._load_map(sample, world2ego, sample["town"])
         if opts.keep_anno:
             sample["anno"] = anno
         return sample
+
+    def _load_expert(self, clip: int, clip_dir: Path, frame: int) -> dict[str, Any]:
+        path = layout.expert_path(clip_dir, frame)
+        feature, value, action = split_expert(read_expert(path))
+        try:
+            control = action_control(action).as_array()
+        except ValueError as exc:
+            raise B2DFormatError(path, str(exc)) from exc
+        feature = feature.astype(np.float32)
+        if self.options.expert_bev:
+            if clip not in self._expert_bev:
+                info = read_format_info(clip_dir)
+                self._expert_bev[clip] = info is not None and expert_feature.is_bev_record(info.expert_feature)
+            if not self._expert_bev[clip]:
+                raise B2DFormatError(
+                    clip_dir / FORMAT_FILE,
+                    f"expert_bev=True but the clip does not record the {expert_feature.FEATURE_NAME} "
+                    f"v{expert_feature.FEATURE_VERSION} layout (released Bench2Drive clips hold Think2Drive's latent)",
+                )
+            try:
+                feature = expert_feature.unflatten(feature)
+            except ValueError as exc:
+                raise B2DFormatError(path, str(exc)) from exc
+        return {
+            "expert_feature": feature,
+            "expert_value": np.float32(value),
+            "expert_action": np.int64(action),
+            "expert_control": control,
+        }
 
     def _clip_track(self, clip_dir: Path, start: int, length: int, pos: int) -> np.ndarray:
         track = self._track[start : start + length]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import logging
 import os
@@ -13,7 +14,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from torch.utils.data import Dataset
+from torch.utils.data import DataLoader, Dataset
 
 from b2d_data import coords
 from b2d_data.codecs import layout
@@ -31,6 +32,7 @@ from b2d_data.format.expert_actions import action_control
 from b2d_data.format.version import FORMAT_FILE
 from b2d_data.format.names import canonical_clip_prefix
 from b2d_data.format.rig import RADARS_V0, camera
+from b2d_data.loaders.collate import collate, mark_variable_fields
 from b2d_data.loaders.hdmap import find_hdmap, load_hdmap_cached
 from b2d_data.loaders.index import CorpusIndex, open_index, presence_column
 from b2d_data.loaders.sample import (
@@ -250,6 +252,26 @@ class ClipDataset(Dataset):
     def __len__(self) -> int:
         return len(self._rows)
 
+    def loader(
+        self, batch_size: int = 1, *, num_workers: int = 0, shuffle: bool = False, pad: bool = False, **kwargs: Any
+    ) -> DataLoader:
+        """A DataLoader with this dataset's :func:`collate` (drops skipped frames; ``pad=True`` pads ragged fields).
+
+        A plain ``DataLoader(dataset, batch_size=...)`` works too (variable-size fields come back as lists); this
+        one also drops frames skipped with ``on_error="skip"``, pads on request, sends small tensors from the
+        workers by value and gives each worker one OpenCV / torch thread. ``kwargs`` go to ``DataLoader``.
+        """
+        kwargs.setdefault("worker_init_fn", worker_init_fn if num_workers else None)
+        kwargs.setdefault("persistent_workers", num_workers > 0)
+        return DataLoader(
+            self,
+            batch_size=batch_size,
+            shuffle=shuffle,
+            num_workers=num_workers,
+            collate_fn=functools.partial(collate, pad=pad),
+            **kwargs,
+        )
+
     @property
     def clip_names(self) -> list[str]:
         """Names of the clips this dataset draws frames from."""
@@ -267,7 +289,7 @@ class ClipDataset(Dataset):
             self._cv_pid = os.getpid()
         row = int(self._rows[index])
         try:
-            return self._load(index, row)
+            return mark_variable_fields(self._load(index, row))
         except _EXPECTED_ERRORS as exc:
             clip = int(self._frame_clip[row])
             err = (

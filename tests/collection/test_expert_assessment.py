@@ -67,8 +67,8 @@ def scene(town01):
     # A car 1 m ahead and 6.3 m right, turned 90°: its length runs along the ego's right axis:
     # forward 0.1–1.9 → row 7; right 4.3–8.3 → cols 10, 11, 12.
     across = _actor(3, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(1.0, 6.3, 90.0), (2.0, 0.9, 0.7))
-    # A parked-car prop 12.9 m behind, 6.9 m left: forward −14.9 to −10.9 → rows 13, 14; right −7.8 to −6.0 → col 4
-    # (−6.0 is the edge between cols 4 and 5, which an open-square overlap test leaves dark... see below).
+    # A parked-car prop 12.9 m behind, 6.9 m left: forward −14.9 to −10.9 → rows 13 (−12, −10], 14, 15 (−16, −14];
+    # right −7.7 to −6.1 → col 4 [−8, −6).
     parked = _actor(4, "static.prop.mesh.Car", ActorKind.PROP, f.at(-12.9, -6.9), (2.0, 0.8, 0.7))
     # A walker 5 m ahead, 1.5 m left: forward 4.75–5.25 → row 5; right −1.75 to −1.25 → col 7.
     walker = _actor(5, "walker.pedestrian.0001", ActorKind.WALKER, f.at(5.0, -1.5), (0.25, 0.25, 0.9))
@@ -90,7 +90,7 @@ def scene(town01):
         frame=4, timestamp=0.2, actors={a.id: a for a in (ego, ahead, across, parked, walker, far)},
         traffic_lights={10: red, 11: green}, traffic_signs={20: stop}, collisions=(), weather=PRESETS[1],
     )  # fmt: skip
-    # Route: 1 m apart straight ahead, 0.5 m right of the ego origin → col 8, rows 7 (forward 0.5?) ... see test.
+    # Route: points 1 m apart straight ahead from the ego origin, 0.5 m to its right.
     route = np.array([f.at(k, 0.5).location.to_array()[:2] for k in range(0, 40)])
     return town01, snapshot, ego, route, f
 
@@ -102,7 +102,7 @@ def test_raster_cells_by_hand(scene):
     assert _lit(raster[ef.VEHICLES]) == {
         (1, 7), (1, 8), (2, 7), (2, 8), (3, 7), (3, 8),  # the car ahead
         (7, 10), (7, 11), (7, 12),  # the car across
-        (13, 4), (14, 4),  # the parked car (its right side on the col 4 / col 5 edge)
+        (13, 4), (14, 4), (15, 4),  # the parked car
     }  # fmt: skip
     assert _lit(raster[ef.WALKERS]) == {(5, 7)}
     assert _lit(raster[ef.STOP]) == {(0, 7), (0, 8), (1, 7), (1, 8), (12, 8), (12, 9), (12, 10), (13, 8), (13, 9),

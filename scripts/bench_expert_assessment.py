@@ -31,16 +31,7 @@ from b2d_data.maps.towns import resolve_town
 from b2d_data.sim import blueprints
 from b2d_data.sim.api import ActorSpec, VehicleControl
 from b2d_data.sim.builtin import BuiltinSimulator
-
-
-def _route(town, length: float = 400.0) -> list:
-    """A long driving route from the town's first spawn point with enough road ahead."""
-    for spawn in town.get_spawn_points():
-        wp = town.get_waypoint(spawn.location)
-        ahead = wp.next(length)
-        if ahead:
-            return town.trace_route(wp.transform.location, ahead[0].transform.location)
-    raise RuntimeError(f"{town.name}: no spawn point with {length} m of road ahead")
+from bench_sim import _route  # noqa: E402 - the script's own folder is on sys.path when run as a script
 
 
 def main() -> None:
@@ -50,7 +41,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     town = resolve_town(args.town)
-    route = _route(town)
+    route = _route(town, 400.0)
     route_xy = np.array([(wp.transform.location.x, wp.transform.location.y) for wp, _ in route])
 
     t0 = time.perf_counter()

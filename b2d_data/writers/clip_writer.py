@@ -122,13 +122,13 @@ class ClipWriter:
     Files go to a temporary sibling ``<root>/.<clip>.tmp-<pid>-<token>`` that ``close()`` renames into place;
     ``abort()``, a failed frame, or an exception inside ``with ClipWriter(...) as w:`` removes it. Frame indices
     must run 0, 1, 2, …; frame 0 fixes which files every frame has (cameras and sizes, dense labels, LiDAR,
-    radar, expert vector); ``expert_feature`` describes the expert vectors' feature part in ``b2d_format.json``
-    (recorded only when the clip has them). With ``workers > 0`` the encoding runs in a process pool (or in
-    ``executor`` when given, which the writer then does not shut down) with at most ``max_in_flight`` frames queued (default
+    radar, expert vector). With ``workers > 0`` the encoding runs in a process pool (or in ``executor`` when
+    given, which the writer then does not shut down) with at most ``max_in_flight`` frames queued (default
     workers + 1, ~90 MB of shared memory each at full resolution); arrays are copied at ``write`` so the caller
     may reuse its buffers. Errors from the pool are raised by the next ``write`` or by ``close``, name the frame,
     and abort the clip. The pool starts its processes with ``forkserver`` (``spawn`` off Linux), so a script
     using ``workers > 0`` needs the usual ``if __name__ == "__main__":`` guard.
+    ``expert_feature`` (JSON-able) describes the expert vectors' feature in ``b2d_format.json`` when the clip has them.
     """
 
     def __init__(

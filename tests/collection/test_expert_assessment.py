@@ -12,29 +12,16 @@ from b2d_data.format import expert_feature as ef
 from b2d_data.format.expert_actions import action_control
 from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
 from b2d_data.format.weather import PRESETS
-from b2d_data.maps import LaneType, load_opendrive
+from b2d_data.maps import LaneType
 from b2d_data.sim.api import (
     ActorKind,
-    ActorState,
     Snapshot,
     TrafficLightInfo,
     TrafficLightState,
     TrafficSignInfo,
 )
 
-
-@pytest.fixture(scope="module")
-def town01(carla_maps_dir):
-    return load_opendrive(carla_maps_dir / "Town01.xodr")
-
-
-def _actor(actor_id, type_id, kind, transform, extent, speed=0.0, **kw):
-    fwd = transform.get_forward_vector()
-    return ActorState(
-        id=actor_id, type_id=type_id, kind=kind, transform=transform,
-        velocity=Location(fwd.x * speed, fwd.y * speed, 0.0), angular_velocity=Location(), acceleration=Location(),
-        bounding_box=BoundingBox(Location(0.0, 0.0, extent[2]), Location(*extent)), semantic_tags=(), **kw,
-    )  # fmt: skip
+from .conftest import make_actor
 
 
 class _EgoFrame:
@@ -60,19 +47,19 @@ def scene(town01):
     wp = next(w for w in town01.generate_waypoints(20.0) if abs(math.sin(math.radians(w.transform.rotation.yaw))) > 0.5)
     ego_tf = Transform(wp.transform.location, wp.transform.rotation)
     f = _EgoFrame(ego_tf)
-    ego = _actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.45, 1.06, 0.75), speed=5.0,
+    ego = make_actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.45, 1.06, 0.75), speed=5.0,
                  role_name="hero")
     # A car 10.5 m ahead (half length 2.2, half width 0.9): forward 8.3–12.7 → rows 1–3; right −0.9–0.9 → cols 7, 8.
-    ahead = _actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(10.5, 0.0), (2.2, 0.9, 0.7))
+    ahead = make_actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(10.5, 0.0), (2.2, 0.9, 0.7))
     # A car 1 m ahead and 6.3 m right, turned 90°: its length runs along the ego's right axis:
     # forward 0.1–1.9 → row 7; right 4.3–8.3 → cols 10, 11, 12.
-    across = _actor(3, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(1.0, 6.3, 90.0), (2.0, 0.9, 0.7))
+    across = make_actor(3, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(1.0, 6.3, 90.0), (2.0, 0.9, 0.7))
     # A parked-car prop 12.9 m behind, 6.9 m left: forward −14.9 to −10.9 → rows 13 (−12, −10], 14, 15 (−16, −14];
     # right −7.7 to −6.1 → col 4 [−8, −6).
-    parked = _actor(4, "static.prop.mesh.Car", ActorKind.PROP, f.at(-12.9, -6.9), (2.0, 0.8, 0.7))
+    parked = make_actor(4, "static.prop.mesh.Car", ActorKind.PROP, f.at(-12.9, -6.9), (2.0, 0.8, 0.7))
     # A walker 5 m ahead, 1.5 m left: forward 4.75–5.25 → row 5; right −1.75 to −1.25 → col 7.
-    walker = _actor(5, "walker.pedestrian.0001", ActorKind.WALKER, f.at(5.0, -1.5), (0.25, 0.25, 0.9))
-    far = _actor(6, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(60.0, 0.0), (2.2, 0.9, 0.7))
+    walker = make_actor(5, "walker.pedestrian.0001", ActorKind.WALKER, f.at(5.0, -1.5), (0.25, 0.25, 0.9))
+    far = make_actor(6, "vehicle.audi.a2", ActorKind.VEHICLE, f.at(60.0, 0.0), (2.2, 0.9, 0.7))
     trigger = BoundingBox(Location(0.0, -3.0, 0.0), Location(1.0, 1.5, 1.0))
     none_box = BoundingBox(Location(), Location(0.1, 0.1, 0.1))
 

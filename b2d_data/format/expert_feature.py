@@ -6,8 +6,9 @@ recorded in the clip's ``b2d_format.json`` (key ``expert_feature``, :func:`layou
 feature only when that record says it is this raster (:func:`is_bev_record`).
 
 Vector (float32, length 1538): ``[:1536]`` the raster flattened in C order (channel, row, col); ``[-2]`` the route
-progress in [0, 1] (the share of the dense route behind the ego); ``[-1]`` the action index nearest to the control
-the ego applies at the frame (:func:`b2d_data.format.expert_actions.nearest_action`).
+progress in [0, 1] (index of the dense-route point nearest the ego / (route points − 1)); ``[-1]`` the index of the
+action nearest to the control the ego applies at the frame — the expert's, as the annotation's ``throttle``,
+``steer``, ``brake``, ``reverse`` record it (:func:`b2d_data.format.expert_actions.nearest_action`).
 
 Raster: 6 channels × 16 rows × 16 columns of 2 m cells, centred on the ego's origin, in the CARLA ego frame (x
 forward, y right) turned by the ego's yaw only. Row 0 is the farthest ahead (row ``r`` covers forward distances
@@ -16,7 +17,7 @@ forward, y right) turned by the ego's yaw only. Row 0 is the farthest ahead (row
 
 == ============ =====================================================================================================
  0  drivable    the cell centre lies within half a lane width of a driving lane's centre line
- 1  route       the cell holds one of the next route points (1 m apart, the route the ego is following)
+ 1  route       the cell holds one of the next 50 points of the dense 1 m route, from the point nearest the ego
  2  vehicles    the cell overlaps the footprint of another vehicle (parked-car props included; not the ego)
  3  walkers     the cell overlaps the footprint of a pedestrian
  4  stop        the cell overlaps the trigger volume of a red or yellow traffic light or of a stop sign

@@ -217,13 +217,10 @@ def _materialise(town: TownSource, out: Path) -> TownSource:
 
 
 def _read_route_file(path: Path) -> list[Route]:
-    from b2d_data.data import bench2drive_dir
+    from b2d_data.data import shipped_or_given
     from b2d_data.scenarios.route_xml import read_routes
 
-    shipped = bench2drive_dir() / path.name
-    if not path.exists() and path.parent == Path(".") and shipped.is_file():
-        # A bare name such as bench2drive220.xml means the route file shipped with the package.
-        path = shipped
+    path = shipped_or_given(path)  # a bare name such as bench2drive220.xml: the route file the package ships
     try:
         return read_routes(path)
     except B2DFormatError as exc:

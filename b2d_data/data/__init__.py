@@ -24,3 +24,11 @@ def bench2drive_file(name: str) -> Path:
         shipped = ", ".join(sorted(p.name for p in bench2drive_dir().iterdir() if p.suffix in (".xml", ".json")))
         raise FileNotFoundError(f"{path}: no such shipped Bench2Drive file (shipped: {shipped})")
     return path
+
+
+def shipped_or_given(path: Path) -> Path:
+    """``path``, or the shipped Bench2Drive file of that name when ``path`` is a bare name that does not exist here."""
+    shipped = bench2drive_dir() / path.name
+    if not path.exists() and path.parent == Path(".") and shipped.is_file():
+        return shipped
+    return path

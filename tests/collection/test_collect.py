@@ -416,21 +416,10 @@ def test_run_log_skips_a_line_cut_by_a_crash(tmp_path):
 
 
 def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection, short_routes, tmp_path):
-    from b2d_data.cli.collect import _config, build_parser
-    from b2d_data.collection.progress import frames_of
-    from b2d_data.collection.runner import collect
-
     out = tmp_path / "records"
-    reports = []
-    summary = collect(_config(build_parser().parse_args([*_args(short_routes, out), "--no-sensors", "--workers", "2"])),
-                      reports.append)  # fmt: skip
-    assert summary.complete
+    assert main([*_args(short_routes, out), "--no-sensors", "--workers", "2"]) == 0
     assert not _clips(out)
     finals = rl.final_records(rl.read_run_log(out / rl.LOG_FILE))
-    # The workers' frame reports reached the driver while their routes ran.
-    for r in finals:
-        seen = [route.frames for p in reports for route in p.routes if route.route_id == r["route_id"]]
-        assert seen and 0 < max(seen) <= frames_of(r["ticks"], 0), (r["route_id"], seen)
     assert len({r["pid"] for r in finals}) >= 1 and all(r["frames"] == 0 for r in finals)
     reference = {r["route_id"]: r for r in rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))}
     for r in finals:
@@ -442,6 +431,32 @@ def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection,
             ref["infractions"],
         )
         assert (out / "results" / f"{r['clip']}.json").is_file()
+
+
+def test_pool_workers_report_their_frames_to_the_driver(short_routes, tmp_path):
+    """Each worker's first frame report, and more while its route runs, reach the driver's ``on_frames``."""
+    from b2d_data.cli.collect import _config, build_parser
+    from b2d_data.collection.backends import ProcessPoolBackend
+    from b2d_data.collection.plan import plan_collection
+    from b2d_data.collection.progress import frames_of
+
+    config = _config(build_parser().parse_args([*_args(short_routes, tmp_path / "r"), "--no-sensors"]))
+    tasks = plan_collection(config).scenarios[0].tasks[:2]
+    reports = []
+    backend = ProcessPoolBackend(tmp_path / "r", config, 2, on_frames=reports.append)
+    results = {}
+    try:
+        for task in tasks:
+            backend.submit(task)
+        while backend.running():
+            results.update((str(task.route.id), result) for task, result in backend.wait(timeout=1.0))
+    finally:
+        backend.close()
+    assert sorted(results) == sorted(str(t.route.id) for t in tasks)
+    for route_id, result in results.items():
+        frames = [r.frames for r in reports if r.route_id == route_id]
+        assert frames and frames[0] == 1 and frames == sorted(frames), (route_id, frames)
+        assert frames[-1] <= frames_of(result.ticks, result.frames)
 
 
 def test_ray_requested_without_ray_is_a_clear_error(short_routes, tmp_path, capsys, monkeypatch):

@@ -433,17 +433,21 @@ def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection,
         assert (out / "results" / f"{r['clip']}.json").is_file()
 
 
-def test_pool_workers_report_their_frames_to_the_driver(short_routes, tmp_path):
-    """Each worker's first frame report, and more while its route runs, reach the driver's ``on_frames``."""
+@pytest.mark.parametrize("workers", [1, 2], ids=["inline", "pool"])
+def test_jobs_report_their_frames_to_the_driver(short_routes, tmp_path, workers):
+    """Each job's first frame report, and more while its route runs, reach the driver's ``on_frames``."""
     from b2d_data.cli.collect import _config, build_parser
-    from b2d_data.collection.backends import ProcessPoolBackend
+    from b2d_data.collection.backends import InlineBackend, ProcessPoolBackend
     from b2d_data.collection.plan import plan_collection
     from b2d_data.collection.progress import frames_of
 
     config = _config(build_parser().parse_args([*_args(short_routes, tmp_path / "r"), "--no-sensors"]))
-    tasks = plan_collection(config).scenarios[0].tasks[:2]
+    tasks = plan_collection(config).scenarios[0].tasks[:workers]
     reports = []
-    backend = ProcessPoolBackend(tmp_path / "r", config, 2, on_frames=reports.append)
+    if workers == 1:
+        backend = InlineBackend(tmp_path / "r", config, on_frames=reports.append)
+    else:
+        backend = ProcessPoolBackend(tmp_path / "r", config, workers, on_frames=reports.append)
     results = {}
     try:
         for task in tasks:

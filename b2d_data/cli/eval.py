@@ -19,6 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from b2d_data.data import shipped_or_given
 from b2d_data.eval.junctions import MapJunctionProvider
 from b2d_data.eval.report import format_table, plot_abilities
 from b2d_data.eval.results import expand_result_argument, load_result_argument, load_result_set
@@ -53,6 +54,10 @@ def _collection_of(results_file: Path) -> tuple[Path, int] | None:
 
 def _run_summary(args: argparse.Namespace) -> int:
     n_sets = 1 if args.merge else len(args.results)
+    # Bare names of shipped files (bench2drive220.xml, VAD_merged_results.json) work from any folder.
+    args.results = [str(shipped_or_given(Path(a))) if "+" not in a else a for a in args.results]
+    if args.routes is not None:
+        args.routes = shipped_or_given(args.routes)
 
     if args.merge:
         files: list[Path] = []

@@ -173,3 +173,13 @@ def test_merge_flag_makes_one_set_of_all_files(synthetic_run, tmp_path, capsys):
     assert main(["summary", *files, "--merge", "--names", "run", "--num-routes", "8", "--out", str(out)]) == 0
     (only,) = json.loads(out.read_text())["result_sets"]
     assert only["name"] == "run" and only["records"] == 7 and only["driving_score"] == pytest.approx(62.5)
+
+
+def test_shipped_files_by_bare_name(tmp_path, monkeypatch, capsys):
+    # From a folder holding neither file, the bare names reach the copies the package ships.
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "s.json"
+    assert main(["summary", "VAD_merged_results.json", "--routes", "bench2drive220.xml", "--out", str(out)]) == 0
+    result = json.loads(out.read_text())["result_sets"][0]
+    assert result["driving_score"] == pytest.approx(42.35, abs=0.005)
+    assert result["abilities"]["Overtaking"]["value"] == pytest.approx(24.44, abs=0.005)  # 11 of 45 routes

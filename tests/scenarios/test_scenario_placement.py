@@ -28,7 +28,19 @@ def interurban(tmp_path_factory):
 
 
 def test_every_implemented_type_has_a_layout():
-    assert sorted(LAYOUTS) == IMPLEMENTED and len(IMPLEMENTED) == 12
+    # NoScenario: plain routes, a layout without a behaviour
+    assert sorted(set(LAYOUTS) - {"NoScenario"}) == IMPLEMENTED and "NoScenario" in LAYOUTS
+    assert len(IMPLEMENTED) >= 24  # issue 4's 12 and issue 14's 12
+
+
+def test_no_scenario_routes_hold_no_scenario_and_cross_a_junction(town):
+    routes = make_routes(town, "NoScenario", 3, seed=1)
+    # the index after the 44 types: (1 × 100 + 44) × 10000 + k + 1
+    assert [r.id for r in routes] == ["1440001", "1440002", "1440003"]
+    for r in routes:
+        assert r.scenarios == () and r.scenario_type is None
+        dense = DenseRoute.from_route(town, r)
+        assert any(wp.is_junction for wp in dense.waypoints) and not dense.waypoints[0].is_junction
 
 
 @pytest.mark.parametrize("scenario_type", IMPLEMENTED)

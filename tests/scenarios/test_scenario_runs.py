@@ -141,6 +141,7 @@ EXPERT_SMOKE = ("Accident", "DynamicObjectCrossing", "NonSignalizedJunctionRight
 @pytest.mark.parametrize("scenario_type", EXPERT_SMOKE)
 def test_the_expert_completes_one_route_per_family(town, scenario_type):
     from b2d_data import expert
+
     route = make_routes(town, scenario_type, 1, seed=0)[0]
     dense = DenseRoute.from_route(town, route)
     with BuiltinSimulator(town, seed=0) as sim:

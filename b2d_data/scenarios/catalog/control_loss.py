@@ -11,10 +11,10 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 
+from b2d_data.format.transform import Location, Transform
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, horizontal_distance
-from b2d_data.format.transform import Location, Transform
 from b2d_data.sim.api import Snapshot, VehicleControl
 
 log = logging.getLogger(__name__)

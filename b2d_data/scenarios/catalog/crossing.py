@@ -12,23 +12,21 @@ import logging
 import math
 
 from b2d_data.format.transform import Vector3D
-from b2d_data.maps import LaneType, Waypoint
+from b2d_data.maps import LaneType
 from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS, half_extent, random_walker
-from b2d_data.scenarios.catalog.road_geometry import find_side_lane, move_along, offset_transform, outermost_lane
+from b2d_data.scenarios.catalog.road_geometry import (
+    find_side_lane,
+    lateral_offset,
+    move_along,
+    offset_transform,
+    outermost_lane,
+)
 from b2d_data.scenarios.controllers import WalkerController
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, TimeToArrivalTrigger
 from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
-
-
-def _lateral_between(a: Waypoint, b: Waypoint) -> float:
-    """Signed lateral offset (m, + right of ``a``'s heading) of ``b``'s centre from ``a``'s centre."""
-    r = math.radians(a.transform.rotation.yaw)
-    dx = b.transform.location.x - a.transform.location.x
-    dy = b.transform.location.y - a.transform.location.y
-    return -math.sin(r) * dx + math.cos(r) * dy
 
 
 @register
@@ -61,10 +59,10 @@ class DynamicObjectCrossing(Scenario):
         self.lane_waypoint = wp
         sidewalk = find_side_lane(wp, self.direction, LaneType.SIDEWALK)
         if sidewalk is not None:
-            self.blocker_lateral = self.sign * abs(_lateral_between(wp, sidewalk))
+            self.blocker_lateral = self.sign * abs(lateral_offset(wp, sidewalk))
         else:
             outer = outermost_lane(wp, self.direction)
-            self.blocker_lateral = self.sign * (abs(_lateral_between(wp, outer)) + 1.5)
+            self.blocker_lateral = self.sign * (abs(lateral_offset(wp, outer)) + 1.5)
         self.has_sidewalk = sidewalk is not None
         blocker_extent = half_extent(self.blocker_model)
         # props stand turned by 90°: their y extent lies along the lane

@@ -16,7 +16,6 @@ follows the lane for 70 m at 60 km/h. The background gets 30 m extra space.
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 
@@ -24,6 +23,7 @@ from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
 from b2d_data.scenarios.catalog.road_geometry import (
     lane_walk,
+    lateral_offset,
     move_along,
     neighbour,
     offset_transform,
@@ -35,14 +35,6 @@ from b2d_data.scenarios.triggers import TimeToArrivalTrigger
 from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
-
-
-def _lateral(a: Waypoint, b: Waypoint) -> float:
-    """Signed lateral offset (m, + right of ``a``'s heading) of ``b``'s centre from ``a``'s centre."""
-    r = math.radians(a.transform.rotation.yaw)
-    dx = b.transform.location.x - a.transform.location.x
-    dy = b.transform.location.y - a.transform.location.y
-    return -math.sin(r) * dx + math.cos(r) * dy
 
 
 def merge_track(
@@ -101,7 +93,7 @@ class ParkingCutIn(Scenario):
             self.slots.append((lane, parking))
         self.models = [random_parked_car(ctx.rng) for _ in self.slots]
         lane, parking = self.slots[1]
-        self.cut_in_lateral = _lateral(lane, parking) + self._push(parking, self.models[1])
+        self.cut_in_lateral = lateral_offset(lane, parking) + self._push(parking, self.models[1])
         self.track = merge_track(lane, self.cut_in_lateral, self.merge_length, self.drive_distance)
         self._tta = TimeToArrivalTrigger(lane.transform.location, self.sync_time, self.min_trigger_distance)
         self.cars: list[int] = []
@@ -115,7 +107,7 @@ class ParkingCutIn(Scenario):
     def build(self) -> None:
         """The two parked cars."""
         for (lane, parking), model in zip(self.slots, self.models):
-            lateral = _lateral(lane, parking) + self._push(parking, model)
+            lateral = lateral_offset(lane, parking) + self._push(parking, model)
             transforms = [offset_transform(lane, lateral=lateral, forward=f, z=0.05) for f in (0.0, 1.0, -1.0)]
             car = self.spawn(model, transforms[0], retries=transforms[1:])
             park(self.ctx.sim, car)
@@ -196,7 +188,7 @@ class StaticCutIn(Scenario):
         if ego_lane is None or ego_lane.is_junction:
             raise ScenarioSetupError(f"{self.name}: the ego's lane is not junction-free beside the cut-in car")
         self.ego_lane = ego_lane
-        self.cut_in_lateral = _lateral(ego_lane, cut_in_spot)
+        self.cut_in_lateral = lateral_offset(ego_lane, cut_in_spot)
         self.models = [random_parked_car(ctx.rng) for _ in self.spots]
         self._tta = TimeToArrivalTrigger(cut_in_spot.transform.location, self.sync_time, self.min_trigger_distance)
         self.cars: list[int] = []

@@ -46,7 +46,9 @@ class ParkingCrossingPedestrian(Scenario):
         self.sign = 1.0 if self.direction == "right" else -1.0
         wp = move_along(self.trigger_waypoint, self.distance)
         if wp is None or wp.is_junction:
-            raise ScenarioSetupError(f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point")
+            raise ScenarioSetupError(
+                f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point"
+            )
         parking = neighbour(wp, self.direction)
         if parking is None or not parking.lane_type & LaneType.PARKING:
             raise ScenarioSetupError(

@@ -39,6 +39,14 @@ def offset_transform(
     return Transform(Location(x, y, loc.z + z), Rotation(pitch=0.0, yaw=t.rotation.yaw + yaw, roll=0.0))
 
 
+def lateral_offset(a: Waypoint, b: Waypoint) -> float:
+    """Signed lateral offset (m, + right of ``a``'s heading) of ``b``'s centre from ``a``'s centre."""
+    r = math.radians(a.transform.rotation.yaw)
+    dx = b.transform.location.x - a.transform.location.x
+    dy = b.transform.location.y - a.transform.location.y
+    return -math.sin(r) * dx + math.cos(r) * dy
+
+
 def same_direction(a: Waypoint, b: Waypoint) -> bool:
     """Whether two lanes of one road section carry traffic the same way."""
     return a.lane_id * b.lane_id > 0

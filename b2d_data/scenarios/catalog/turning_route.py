@@ -21,6 +21,7 @@ from b2d_data.scenarios.catalog.actor_choices import random_bicycle, random_walk
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import (
     find_side_lane,
+    lateral_offset,
     move_along,
     offset_transform,
     opposite_driving_neighbour,
@@ -34,14 +35,6 @@ from b2d_data.sim.api import Snapshot
 log = logging.getLogger(__name__)
 
 
-def _lateral(a: Waypoint, b: Waypoint) -> float:
-    """Signed lateral offset (m, + right of ``a``'s heading) of ``b``'s centre from ``a``'s centre."""
-    r = math.radians(a.transform.rotation.yaw)
-    dx = b.transform.location.x - a.transform.location.x
-    dy = b.transform.location.y - a.transform.location.y
-    return -math.sin(r) * dx + math.cos(r) * dy
-
-
 def road_side_offset(wp: Waypoint, side: str) -> float:
     """Signed lateral offset (m, + right) from ``wp``'s lane centre to the road's ``side`` sidewalk, or 1.5 m past
     the outermost lane where there is none (the far side of a two-way road is reached over the opposite lanes)."""
@@ -53,9 +46,9 @@ def road_side_offset(wp: Waypoint, side: str) -> float:
             base, walk_side = opposite, "right"  # the opposite lanes' right is the ego's left
     sidewalk = find_side_lane(base, walk_side, LaneType.SIDEWALK)
     if sidewalk is not None:
-        return _lateral(wp, sidewalk)
+        return lateral_offset(wp, sidewalk)
     outer = outermost_lane(base, walk_side)
-    return _lateral(wp, outer) + sign * (0.5 * outer.lane_width + 1.5)
+    return lateral_offset(wp, outer) + sign * (0.5 * outer.lane_width + 1.5)
 
 
 class _TurningRouteScenario(JunctionScenario):

@@ -15,7 +15,7 @@ import logging
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, LightSchedule, light_states, lights_of_lane
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import Snapshot, TrafficLightInfo, TrafficLightState
 
 log = logging.getLogger(__name__)
 
@@ -40,16 +40,16 @@ class VanillaJunctionTurn(JunctionScenario):
         return ScenarioStatus.RUNNING
 
 
-@register
-class VanillaSignalizedTurnEncounterRedLight(VanillaJunctionTurn):
-    """All lights red for 5 s, then the ego's green: the ego must wait at the stop line, then go (§2.2 #42)."""
-
-    xml_type = "VanillaSignalizedTurnEncounterRedLight"
-    green_light_delay = 5.0
+class ScheduledLightsTurn(VanillaJunctionTurn):
+    """A turn at a signalised junction whose lights follow a fixed schedule from the trigger on."""
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.lights: LightSchedule | None = None
+
+    def phases(self, lights: list[TrafficLightInfo]) -> list[tuple[dict[int, TrafficLightState], float | None]]:
+        """The schedule's (states, duration) phases for the junction's lights."""
+        raise NotImplementedError
 
     def build(self) -> None:
         """Check that the junction is signalised."""
@@ -57,10 +57,7 @@ class VanillaSignalizedTurnEncounterRedLight(VanillaJunctionTurn):
 
     def start(self, snapshot: Snapshot) -> None:
         """Start the light schedule."""
-        lights = self.require_lights(snapshot)
-        all_red = light_states(lights, [])
-        ego_green = light_states(lights, lights_of_lane(lights, self.ego_entry))
-        self.lights = LightSchedule(self.ctx.sim, [(all_red, self.green_light_delay), (ego_green, None)])
+        self.lights = LightSchedule(self.ctx.sim, self.phases(self.require_lights(snapshot)))
         self.lights.update(snapshot)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
@@ -76,39 +73,30 @@ class VanillaSignalizedTurnEncounterRedLight(VanillaJunctionTurn):
 
 
 @register
-class VanillaSignalizedTurnEncounterGreenLight(VanillaJunctionTurn):
+class VanillaSignalizedTurnEncounterRedLight(ScheduledLightsTurn):
+    """All lights red for 5 s, then the ego's green: the ego must wait at the stop line, then go (§2.2 #42)."""
+
+    xml_type = "VanillaSignalizedTurnEncounterRedLight"
+    green_light_delay = 5.0
+
+    def phases(self, lights: list[TrafficLightInfo]) -> list[tuple[dict[int, TrafficLightState], float | None]]:
+        """All red for 5 s, then the ego's light green until the end."""
+        ego_green = light_states(lights, lights_of_lane(lights, self.ego_entry))
+        return [(light_states(lights, []), self.green_light_delay), (ego_green, None)]
+
+
+@register
+class VanillaSignalizedTurnEncounterGreenLight(ScheduledLightsTurn):
     """The ego's light green for 5 s, then all red for 5 s, then the normal cycle (§2.2 #41)."""
 
     xml_type = "VanillaSignalizedTurnEncounterGreenLight"
     green_time = 5.0
     red_time = 5.0
 
-    def __init__(self, ctx: ScenarioContext) -> None:
-        super().__init__(ctx)
-        self.lights: LightSchedule | None = None
-
-    def build(self) -> None:
-        """Check that the junction is signalised."""
-        self.require_lights(self.ctx.sim.snapshot())
-
-    def start(self, snapshot: Snapshot) -> None:
-        """Start the light schedule (it releases the lights itself after its last phase)."""
-        lights = self.require_lights(snapshot)
+    def phases(self, lights: list[TrafficLightInfo]) -> list[tuple[dict[int, TrafficLightState], float | None]]:
+        """The ego's light green for 5 s, all red for 5 s; the schedule then releases the lights."""
         ego_green = light_states(lights, lights_of_lane(lights, self.ego_entry))
-        all_red = light_states(lights, [])
-        self.lights = LightSchedule(self.ctx.sim, [(ego_green, self.green_time), (all_red, self.red_time)])
-        self.lights.update(snapshot)
-
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Advance the lights; SUCCESS 10 m after the junction."""
-        if self.lights is not None:
-            self.lights.update(snapshot)
-        return super().update(snapshot)
-
-    def on_end(self) -> None:
-        """Release the lights."""
-        if self.lights is not None:
-            self.lights.release()
+        return [(ego_green, self.green_time), (light_states(lights, []), self.red_time)]
 
 
 @register

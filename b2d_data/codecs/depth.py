@@ -10,6 +10,7 @@ import numpy as np
 
 from b2d_data.codecs._npz import first_npz_array
 from b2d_data.codecs._source import Source, read_source, write_bytes
+from b2d_data.codecs.png import encode_png
 from b2d_data.format.errors import B2DFormatError
 
 #: Key of the depth array in the npz files we write; the decoder reads the first array whatever its key.
@@ -46,13 +47,9 @@ def _check_depth(depth_m: np.ndarray) -> None:
 
 
 def encode_depth_png(depth_m: np.ndarray) -> bytes:
-    """Encode (H, W) depth in metres as Bench2Drive's 1-channel uint8 PNG (OpenCV default PNG parameters)."""
+    """Encode (H, W) depth in metres as Bench2Drive's 1-channel uint8 PNG (the pixels OpenCV would store)."""
     _check_depth(depth_m)
-    # Default parameters, as the collector used: they are also the fastest for these smooth uint8 images.
-    ok, buf = cv2.imencode(".png", depth_to_png_pixels(depth_m))
-    if not ok:
-        raise ValueError(f"OpenCV could not encode a {depth_m.shape} depth image as PNG")
-    return buf.tobytes()
+    return encode_png(depth_to_png_pixels(depth_m))
 
 
 def write_depth_png(path: str | os.PathLike[str], depth_m: np.ndarray) -> int:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import multiprocessing
 import os
 import tempfile
@@ -38,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from b2d_data.collection import job as job_module
-from b2d_data.collection.layout import auto_layout, count_gpus
+from b2d_data.collection.layout import auto_layout, count_gpus, single_thread_environment, single_thread_worker
 from b2d_data.collection.plan import plan_collection
 
 # ---------------------------------------------------------------------------------------------- the stage timer
@@ -197,6 +198,7 @@ def instrument(timer: StageTimer, warmup: int) -> dict[str, int]:
 
 def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTimer, int, Any]:
     """Run one route with every stage timed; returns the timer, the frames timed and the job result."""
+    single_thread_worker()  # as in a route process of a parallel collection: CPU figures of one thread each
     timer = StageTimer()
     state = instrument(timer, warmup)
     _cap_ticks(2 * (frames + warmup) if frames > 0 else 0)
@@ -208,8 +210,10 @@ def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTime
     return timer, state["frames"], result
 
 
-def _pipeline_worker_init(max_ticks: int, owner: int) -> None:
-    job_module.exit_with_parent(owner)
+def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int) -> None:
+    from b2d_data.collection.backends import _worker_init
+
+    _worker_init(log_level, owner)  # what b2d-collect's route processes do
     _cap_ticks(max_ticks)
 
 
@@ -222,12 +226,13 @@ def _busy_jiffies() -> tuple[int, int]:
 
 def pipeline(config: Any, tasks: list[Any], workers: int, frames: int) -> tuple[int, float, float, list[Any]]:
     """Run ``tasks`` on ``workers`` processes; returns (frames, wall seconds, busy cores on average, results)."""
+    single_thread_environment()
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     busy0, total0 = _busy_jiffies()
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
         workers, mp_context=multiprocessing.get_context(method), initializer=_pipeline_worker_init,
-        initargs=(2 * frames if frames > 0 else 0, os.getpid()),
+        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING),
     ) as pool:  # fmt: skip
         futures = [pool.submit(job_module.run_route_job, t.route, t.town, config.out, config, t.seed) for t in tasks]
         wait_futures(futures)

@@ -20,6 +20,7 @@ from b2d_data.collection.job import (
     run_route_job,
     shutdown_encoders,
 )
+from b2d_data.collection.layout import single_thread_environment, single_thread_worker
 from b2d_data.collection.plan import CollectError, RouteTask
 
 log = logging.getLogger(__name__)
@@ -92,8 +93,9 @@ class InlineBackend:
 
 
 def _worker_init(log_level: int, driver_pid: int) -> None:
-    """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), quiet logging."""
+    """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), one OpenCV thread, logging."""
     exit_with_parent(driver_pid)
+    single_thread_worker()
     logging.basicConfig(level=log_level, format="%(levelname)s %(name)s [%(process)d]: %(message)s")
     logging.getLogger().setLevel(log_level)
 
@@ -110,6 +112,7 @@ class ProcessPoolBackend:
         import multiprocessing
 
         # spawn/forkserver: a worker never inherits the driver's threads (tqdm, GL) mid-state.
+        single_thread_environment()
         method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         return ProcessPoolExecutor(
             self.capacity,

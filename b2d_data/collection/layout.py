@@ -12,6 +12,11 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+#: Thread pools of the native libraries a route process uses, capped at one thread when several route processes
+#: share the cores: each pool sizes itself to every core of the machine, and dozens of spinning helper threads per
+#: process cost more CPU than they save (OpenCV's colour conversions alone took 3x their single-thread CPU time).
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
 #: Where the NVIDIA driver lists its GPUs (one folder each).
 _NVIDIA_GPUS = Path("/proc/driver/nvidia/gpus")
 
@@ -52,3 +57,16 @@ def auto_layout(cores: int | None = None, gpus: int | None = None) -> Layout:
     if gpus > 0:
         return Layout(workers=cores, encode_workers=0)
     return Layout(workers=1, encode_workers=max(1, min(4, cores)))
+
+
+def single_thread_environment() -> None:
+    """Cap the BLAS/OpenMP pools of processes started from now on (values the user set are kept)."""
+    for key, value in SINGLE_THREAD_ENV.items():
+        os.environ.setdefault(key, value)
+
+
+def single_thread_worker() -> None:
+    """In a route process that shares the machine with others: one OpenCV thread (set before any encoding)."""
+    import cv2
+
+    cv2.setNumThreads(1)

@@ -29,6 +29,7 @@ import logging
 import multiprocessing
 import os
 import tempfile
+import threading
 import time
 from collections import Counter, defaultdict
 from collections.abc import Callable
@@ -42,7 +43,28 @@ from b2d_data.collection import job as job_module
 from b2d_data.collection.layout import auto_layout, count_gpus, single_thread_environment, single_thread_worker
 from b2d_data.collection.plan import plan_collection
 
+#: Bench2Drive-full: 4.26 TB for about 2 million frames.
+B2D_FULL_BYTES_PER_FRAME = 4.26e12 / 2.0e6
+
 # ---------------------------------------------------------------------------------------------- the stage timer
+
+
+def thread_cpu() -> dict[int, tuple[str, float]]:
+    """CPU seconds so far of each thread of this process, with its name (Linux; empty elsewhere)."""
+    out = {}
+    tick = os.sysconf("SC_CLK_TCK")
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            stat = Path(f"/proc/self/task/{tid}/stat").read_text()
+        except OSError:
+            continue
+        name, fields = stat[stat.index("(") + 1 : stat.rindex(")")], stat.rsplit(")", 1)[1].split()
+        out[int(tid)] = (name, (int(fields[11]) + int(fields[12])) / tick)
+    return out
 
 
 class StageTimer:
@@ -52,7 +74,9 @@ class StageTimer:
         self.wall: dict[str, float] = defaultdict(float)
         self.cpu: dict[str, float] = defaultdict(float)
         self.calls: Counter[str] = Counter()
+        self.bytes: Counter[str] = Counter()  # what the encoders report as written
         self._stack: list[list[float]] = []
+        self.threads_at_start = thread_cpu()
         self.started_wall = time.perf_counter()
         self.started_cpu = time.process_time()
 
@@ -61,6 +85,8 @@ class StageTimer:
         self.wall.clear()
         self.cpu.clear()
         self.calls.clear()
+        self.bytes.clear()
+        self.threads_at_start = thread_cpu()
         self.started_wall = time.perf_counter()
         self.started_cpu = time.process_time()
 
@@ -77,7 +103,10 @@ class StageTimer:
             self._stack.append(children)
             w0, c0 = time.perf_counter(), time.process_time()
             try:
-                return fn(*args, **kwargs)
+                out = fn(*args, **kwargs)
+                if name.startswith("encode") and isinstance(out, int):
+                    self.bytes[name] += out
+                return out
             finally:
                 dw, dc = time.perf_counter() - w0, time.process_time() - c0
                 self._stack.pop()
@@ -210,11 +239,14 @@ def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTime
     return timer, state["frames"], result
 
 
-def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int) -> None:
+def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int, pin: bool) -> None:
     from b2d_data.collection.backends import _worker_init
 
     _worker_init(log_level, owner)  # what b2d-collect's route processes do
     _cap_ticks(max_ticks)
+    if pin:  # experiment: one core per route process, so that every thread pool sizes itself to one core
+        cores = sorted(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {cores[os.getpid() % len(cores)]})
 
 
 def _busy_jiffies() -> tuple[int, int]:
@@ -224,7 +256,9 @@ def _busy_jiffies() -> tuple[int, int]:
     return sum(fields) - idle, sum(fields)
 
 
-def pipeline(config: Any, tasks: list[Any], workers: int, frames: int) -> tuple[int, float, float, list[Any]]:
+def pipeline(
+    config: Any, tasks: list[Any], workers: int, frames: int, pin: bool = False
+) -> tuple[int, float, float, list[Any]]:
     """Run ``tasks`` on ``workers`` processes; returns (frames, wall seconds, busy cores on average, results)."""
     single_thread_environment()
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
@@ -232,7 +266,7 @@ def pipeline(config: Any, tasks: list[Any], workers: int, frames: int) -> tuple[
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
         workers, mp_context=multiprocessing.get_context(method), initializer=_pipeline_worker_init,
-        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING),
+        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, pin),
     ) as pool:  # fmt: skip
         futures = [pool.submit(job_module.run_route_job, t.route, t.town, config.out, config, t.seed) for t in tasks]
         wait_futures(futures)
@@ -273,6 +307,7 @@ def main() -> None:
     parser.add_argument("--height", type=int, default=900)
     parser.add_argument("--town", default=None, help="generated town preset (default: the collection default)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--pin", action="store_true", help="pin each route process to one core (experiment)")
     parser.add_argument("--skip-profile", action="store_true")
     parser.add_argument("--skip-pipeline", action="store_true")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures to this file")
@@ -304,7 +339,7 @@ def main() -> None:
             print(f"pipeline: {len(tasks)} routes × ≤{args.frames or 'all'} frames on {workers} route processes "
                   f"(encoders per process: {base.resolved_encode_workers()}), {cores} cores, {gpus} GPU(s) ...",
                   flush=True)  # fmt: skip
-            frames, wall, busy, results = pipeline(base, tasks, workers, args.frames)
+            frames, wall, busy, results = pipeline(base, tasks, workers, args.frames, args.pin)
             errors = [r.reason for r in results if r.status == "error"]
             # Frame loops alone: each route's time less its set-up (map, scene, scenario placement, rig).
             loops = sum(max(0.0, r.duration - r.timings.get("setup", 0.0) - r.timings.get("attach_rig", 0.0))
@@ -339,9 +374,22 @@ def _report_profile(timer: StageTimer, frames: int, result: Any) -> dict[str, An
     wall = 1e3 * sum(timer.wall.values()) / frames
     cpu = 1e3 * sum(timer.cpu.values()) / frames
     print(f"| {'total':<44} | {wall:7.1f} | {cpu:6.1f} |             |")
+    by_name: Counter[str] = Counter()
+    for tid, (name, cpu_s) in thread_cpu().items():
+        by_name[name] += cpu_s - timer.threads_at_start.get(tid, (name, 0.0))[1]
+    main_tid = threading.get_native_id()
+    print("CPU ms per frame by thread name (the stage table counts all threads of the process):")
+    print("  " + ", ".join(f"{n}{' (main)' if n == thread_cpu().get(main_tid, ('',))[0] else ''}: "
+                           f"{1e3 * c / frames:.1f}" for n, c in by_name.most_common(8) if c > 0))  # fmt: skip
+    disk = {name: n / frames for name, n in timer.bytes.items()}
+    total = sum(disk.values())
+    print(f"\nDisk per frame: {total / 1e6:.3f} MB ({total / B2D_FULL_BYTES_PER_FRAME:.2f}x Bench2Drive-full's "
+          f"{B2D_FULL_BYTES_PER_FRAME / 1e6:.1f} MB: 4.26 TB / ~2 M frames)")
+    for name, n in sorted(disk.items(), key=lambda kv: -kv[1]):
+        print(f"  {name.split(': ', 1)[1]:<28} {n / 1e3:8.1f} KB")
     render = ("render: GPU wait (glFinish)",)
     gpu_ms = sum(max(0.0, stages[s]["wall_ms"] - stages[s]["cpu_ms"]) for s in render if s in stages)
-    return {"profile_frames": frames, "stages": stages, "cpu_ms_per_frame": cpu, "wall_ms_per_frame": wall,
+    return {"profile_frames": frames, "stages": stages, "disk_bytes_per_frame": total, "disk": disk, "cpu_ms_per_frame": cpu, "wall_ms_per_frame": wall,
             "gpu_wait_ms_per_frame": gpu_ms}  # fmt: skip
 
 

@@ -48,8 +48,12 @@ class Backend(Protocol):
         ...
 
 
+#: ``JobResult.note`` of an attempt that ended because its worker died or was lost, not because of the route.
+WORKER_LOST = "worker lost"
+
+
 def error_result(task: RouteTask, reason: str) -> JobResult:
-    """The result of a task whose worker died or could not be reached."""
+    """The result of a task whose worker died or could not be reached (noted ``WORKER_LOST``)."""
     now = datetime.now(timezone.utc).isoformat(timespec="milliseconds")
     return JobResult(
         route_id=str(task.route.id),
@@ -61,6 +65,7 @@ def error_result(task: RouteTask, reason: str) -> JobResult:
         reason=reason,
         started=now,
         finished=now,
+        note=WORKER_LOST,
     )
 
 

@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from b2d_data.collection import run_log as rl
-from b2d_data.collection.backends import Backend, make_backend
-from b2d_data.collection.corpus import check_settings, corpus_lock, prepare_corpus, reconcile
+from b2d_data.collection.backends import WORKER_LOST, Backend, make_backend
+from b2d_data.collection.corpus import check_settings, corpus_lock, prepare_corpus, reconcile, remove_temporaries
 from b2d_data.collection.job import (
     STATUS_CLIP,
     STATUS_ERROR,
@@ -43,6 +43,8 @@ from b2d_data.collection.towns import (
 log = logging.getLogger(__name__)
 
 SUMMARY_FILE = "summary.json"
+#: Times a route whose worker died (killed, node lost) is run again in the same session before it counts as tried.
+LOST_WORKER_RETRIES = 2
 
 
 @dataclass
@@ -182,6 +184,8 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
                 log.info("%d route(s) were interrupted and run again: %s", len(interrupted), ", ".join(interrupted))
         session = _Session(plan, out, config, run_log, records, progress)
         attempts, clips = session.run()
+        if session.retries:  # what the lost workers were writing
+            remove_temporaries(out)
         summary = CollectSummary(
             str(out),
             summarise(plan, records, out, config.sensors),
@@ -221,6 +225,7 @@ class _Session:
         self.target = {sp.scenario: sp.target for sp in plan.scenarios}
         self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
+        self.retries: Counter[str] = Counter()
 
     def _clips(self) -> int:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
@@ -260,11 +265,21 @@ class _Session:
                     record = result.to_record()
                     self.run_log.append(record)
                     self.records.append(record)
+                    self._retry_if_lost(task, result)
                     if self.progress is not None:
                         self.progress(Progress(self._clips(), self.requested, self.attempts_before + attempts, result))
         finally:
             backend.close()
         return attempts, clips
+
+    def _retry_if_lost(self, task: RouteTask, result: JobResult) -> None:
+        """Queue a route again (first in its scenario's line) when its worker died under it."""
+        route_id = str(task.route.id)
+        if result.note != WORKER_LOST or self.retries[route_id] >= LOST_WORKER_RETRIES:
+            return
+        self.retries[route_id] += 1
+        self.pending[task.scenario].appendleft(task)
+        log.warning("route %s: its worker was lost (%s); running it again", route_id, result.reason)
 
     def _launch(self, backend: Backend, task: RouteTask) -> None:
         start = {"event": rl.EVENT_START, "route_id": str(task.route.id), "scenario": task.scenario,

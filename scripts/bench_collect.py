@@ -239,10 +239,10 @@ def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTime
     return timer, state["frames"], result
 
 
-def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int, pin: bool) -> None:
+def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int, reports: Any, pin: bool) -> None:
     from b2d_data.collection.backends import _worker_init
 
-    _worker_init(log_level, owner)  # what b2d-collect's route processes do
+    _worker_init(log_level, owner, reports)  # what b2d-collect's route processes do
     _cap_ticks(max_ticks)
     if pin:  # experiment: one core per route process, so that every thread pool sizes itself to one core
         cores = sorted(os.sched_getaffinity(0))
@@ -262,11 +262,13 @@ def pipeline(
     """Run ``tasks`` on ``workers`` processes; returns (frames, wall seconds, busy cores on average, results)."""
     single_thread_environment()
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    context = multiprocessing.get_context(method)
+    reports = context.Queue()  # the workers' progress reports, not read here
     busy0, total0 = _busy_jiffies()
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
-        workers, mp_context=multiprocessing.get_context(method), initializer=_pipeline_worker_init,
-        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, pin),
+        workers, mp_context=context, initializer=_pipeline_worker_init,
+        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, reports, pin),
     ) as pool:  # fmt: skip
         futures = [pool.submit(job_module.run_route_job, t.route, t.town, config.out, config, t.seed) for t in tasks]
         wait_futures(futures)

@@ -45,11 +45,11 @@ def test_count_points_matches_testing_every_point():
     rng = np.random.default_rng(5)
     for k in range(20):
         ego_tf = Transform(Location(*rng.uniform(-50, 50, 2), 0.0), Rotation(yaw=float(rng.uniform(-180, 180))))
-        ego = _actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.4, 1.0, 0.75), (14,))
+        ego = make_actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.4, 1.0, 0.75), (14,))
         rel = rng.uniform(-15, 15, 2)
         other_tf = Transform(ego_tf.transform_point(Location(float(rel[0]), float(rel[1]), 0.0)),
                              Rotation(yaw=float(rng.uniform(-180, 180))))  # fmt: skip
-        other = _actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, other_tf, (2.0, 1.0, 0.8), (14,))
+        other = make_actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, other_tf, (2.0, 1.0, 0.8), (14,))
         around = np.zeros((500, 3))
         around[:, :2] = rel + rng.uniform(-2.5, 2.5, (500, 2))  # a cloud on and around the other car
         around[:, 2] = rng.uniform(-1.0, 1.0, 500)

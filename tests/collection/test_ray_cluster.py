@@ -23,7 +23,8 @@ from .test_collect import N, _args, _clips, _descendants, _temporaries, short_ro
 
 pytest.importorskip("ray")
 
-WORKER_TITLE = b"ray::run_route_job"  # Ray's process title while a worker runs the collection job
+# Ray's process title while a worker runs a task is ray::<function>; the collection's task runs the route job.
+WORKER_TITLE, JOB_FUNCTION = b"ray::", b"route_job"
 # A private test cluster: no usage report, and no token from the user's ~/.ray (Ray >= 2.5x enables token auth
 # whenever that file exists, and the head and the driver must agree).
 RAY_ENV = {"RAY_USAGE_STATS_ENABLED": "0", "RAY_AUTH_MODE": "disabled"}
@@ -44,7 +45,8 @@ def _cmdline(pid: int) -> bytes:
 
 def _job_workers(head: int) -> list[int]:
     """Worker processes of our cluster (below its head process) running a route right now."""
-    return sorted(pid for pid in _descendants(head) if _cmdline(pid).startswith(WORKER_TITLE))
+    return sorted(pid for pid in _descendants(head)
+                  if _cmdline(pid).startswith(WORKER_TITLE) and JOB_FUNCTION in _cmdline(pid).split(b"\0")[0])
 
 
 @pytest.fixture

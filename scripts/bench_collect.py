@@ -302,6 +302,7 @@ def main() -> None:
     parser.add_argument("--scenario", action="append", default=[], help="scenario (repeatable; default HardBreakRoute)")
     parser.add_argument("--frames", type=int, default=8, help="frames per route (0: whole routes)")
     parser.add_argument("--warmup", type=int, default=3, help="profiled frames left out at the start")
+    parser.add_argument("--profile-frames", type=int, default=None, help="frames profiled (default: --frames, or 40)")
     parser.add_argument("--routes", type=int, default=2, help="routes in the pipeline run")
     parser.add_argument("--workers", default="auto", help="route processes in the pipeline run, or auto")
     parser.add_argument("--encode-workers", type=int, default=None, help="encoder processes per route process")
@@ -351,8 +352,9 @@ def main() -> None:
                            busy_cores=round(busy, 2), workers=workers,
                            encode_workers=base.resolved_encode_workers(), errors=errors)  # fmt: skip
         if not args.skip_profile:
+            profiled = args.profile_frames if args.profile_frames is not None else (args.frames or 40)
             print("profile: one route, every stage serial ...", flush=True)
-            timer, timed, result = profile(profile_config, tasks[0], args.frames, args.warmup)
+            timer, timed, result = profile(profile_config, tasks[0], profiled, args.warmup)
             if result.status == "error":
                 raise SystemExit(f"the profiled route failed: {result.reason}\n{result.error}")
             figures.update(_report_profile(timer, timed, result))
@@ -385,8 +387,10 @@ def _report_profile(timer: StageTimer, frames: int, result: Any) -> dict[str, An
                            f"{1e3 * c / frames:.1f}" for n, c in by_name.most_common(8) if c > 0))  # fmt: skip
     disk = {name: n / frames for name, n in timer.bytes.items()}
     total = sum(disk.values())
-    print(f"\nDisk per frame: {total / 1e6:.3f} MB ({total / B2D_FULL_BYTES_PER_FRAME:.2f}x Bench2Drive-full's "
-          f"{B2D_FULL_BYTES_PER_FRAME / 1e6:.1f} MB: 4.26 TB / ~2 M frames)")
+    print(
+        f"\nDisk per frame: {total / 1e6:.3f} MB ({total / B2D_FULL_BYTES_PER_FRAME:.2f}x Bench2Drive-full's "
+        f"{B2D_FULL_BYTES_PER_FRAME / 1e6:.1f} MB: 4.26 TB / ~2 M frames)"
+    )
     for name, n in sorted(disk.items(), key=lambda kv: -kv[1]):
         print(f"  {name.split(': ', 1)[1]:<28} {n / 1e3:8.1f} KB")
     render = ("render: GPU wait (glFinish)",)
@@ -415,9 +419,11 @@ def _report(f: dict[str, Any]) -> None:
         print(f"renderer: {gl}")
         print(f"bound: {bound:.1f} frames/s ({why})")
     if "pipeline_fps" in f:
-        print(f"pipeline: {f['pipeline_frames']} frames in {f['pipeline_wall_s']:.1f} s = "
-              f"{f['pipeline_fps']:.2f} frames/s on {f['workers']} route processes "
-              f"(encoders each: {f['encode_workers']}); {f['busy_cores']:.1f} of {cores} cores busy on average")
+        print(
+            f"pipeline: {f['pipeline_frames']} frames in {f['pipeline_wall_s']:.1f} s = "
+            f"{f['pipeline_fps']:.2f} frames/s on {f['workers']} route processes "
+            f"(encoders each: {f['encode_workers']}); {f['busy_cores']:.1f} of {cores} cores busy on average"
+        )
         print(f"  frame loops alone (route set-up left out): {f['loop_fps']:.2f} frames/s")
         if f["errors"]:
             print(f"  {len(f['errors'])} route(s) failed with an error: {f['errors'][:3]}")

@@ -11,10 +11,10 @@ import pytest
 from PIL import Image
 
 from b2d_data.codecs import (
+    depth_to_png_pixels,
     encode_depth_png,
     encode_instance_png,
     encode_semantic_png,
-    depth_to_png_pixels,
     instance_bgra,
     read_depth_png,
     read_instance_png,
@@ -99,6 +99,6 @@ def test_files_decode_as_opencvs_own_encoder_did():
     (t0, i0), (t1, i1) = read_instance_png(before["instance"]), read_instance_png(after["instance"])
     assert np.array_equal(t0, t1) and np.array_equal(i0, i1) and np.array_equal(i1, ids)
     assert np.array_equal(read_depth_png(before["depth"]), read_depth_png(after["depth"]))
-    for kind in before:  # PIL too (RGBA for instance images, L for the others)
-        a, b = Image.open(io.BytesIO(before[kind])), Image.open(io.BytesIO(after[kind]))
+    for kind, old in before.items():  # PIL too (RGBA for instance images, L for the others)
+        a, b = Image.open(io.BytesIO(old)), Image.open(io.BytesIO(after[kind]))
         assert a.mode == b.mode and np.array_equal(np.asarray(a), np.asarray(b))

@@ -9,7 +9,7 @@ import pytest
 
 from b2d_data.collection.annotations import PlannerFields, build_annotation, count_points_in_box
 from b2d_data.format.anno_schema import check_anno
-from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
+from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import PRESETS
 from b2d_data.sim.api import (
     ActorKind,

@@ -45,8 +45,11 @@ def _cmdline(pid: int) -> bytes:
 
 def _job_workers(head: int) -> list[int]:
     """Worker processes of our cluster (below its head process) running a route right now."""
-    return sorted(pid for pid in _descendants(head)
-                  if _cmdline(pid).startswith(WORKER_TITLE) and JOB_FUNCTION in _cmdline(pid).split(b"\0")[0])
+    return sorted(
+        pid
+        for pid in _descendants(head)
+        if _cmdline(pid).startswith(WORKER_TITLE) and JOB_FUNCTION in _cmdline(pid).split(b"\0")[0]
+    )
 
 
 @pytest.fixture

@@ -3,6 +3,7 @@
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
+from b2d_data.scenarios.catalog.interurban import InterurbanActorFlow
 from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
 from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
 from b2d_data.scenarios.catalog.parking_exit import ParkingExit
@@ -14,7 +15,7 @@ from b2d_data.scenarios.catalog.vanilla_turns import (
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
-    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionRightTurn",
+    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "InterurbanActorFlow", "NonSignalizedJunctionRightTurn",
     "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
 ]  # fmt: skip

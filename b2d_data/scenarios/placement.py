@@ -285,6 +285,43 @@ def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict
     return []
 
 
+#: Highways are at least this fast (km/h); CARLA's Town04/06 highways are 90, generated ones 90–100.
+HIGHWAY_MIN_LIMIT = 80.0
+#: How far up the on-ramp HighwayCutIn's car waits (m before the merge junction).
+CUT_IN_RAMP_DISTANCE = 60.0
+
+
+def _merge_lane(conn: JunctionLane, lanes: list[JunctionLane]) -> JunctionLane | None:
+    """The connection from another road into the lane right of ``conn``'s exit at a shallow angle (an on-ramp
+    merging beside it, not a side street turning in)."""
+    right = same_direction_driving_neighbour(conn.exit, "right")
+    if right is None:
+        return None
+    for other in lanes:
+        into_right = (other.exit.road_id, other.exit.lane_id) == (right.road_id, right.lane_id)
+        if into_right and other.turn == "straight" and other.entry.road_id != conn.entry.road_id:
+            return other
+    return None
+
+
+def _highway_merge(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego drives straight on a highway through a junction where an on-ramp joins the lane on its right."""
+    fast = min(town.speed_limit(conn.entry), town.speed_limit(conn.exit)) >= HIGHWAY_MIN_LIMIT
+    return fast and _merge_lane(conn, lanes) is not None
+
+
+def _cut_in_car(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The cut-in car 60 m up the ramp (less where the ramp is shorter); end_location 10 m past the merge."""
+    merge = _merge_lane(conn, lanes)
+    if merge is None:
+        return []
+    car = walk_back_to_source(merge.entry, CUT_IN_RAMP_DISTANCE, step=2.0)
+    end = move_along(merge.exit, 10.0)
+    if end is None or car.transform.location.distance_2d(merge.entry.transform.location) < 15.0:
+        return []
+    return [{"other_actor_location": _xml_location(car), "end_location": _xml_location(end)}]
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -323,6 +360,10 @@ LAYOUTS: dict[str, Layout] = {
         "interurban", "an unsignalised junction where the route turns left off a road faster than 65 km/h, with an "
         "opposite entry going straight on for 40 m", turns=("left",), signalized=False,
         junction_extra=_interurban_flow, junction_ok=_interurban_turn),
+    "HighwayCutIn": Layout(
+        "highway_ramps", "a highway (>= 80 km/h) crossed straight through a junction where an on-ramp joins the lane "
+        "right of the route", turns=("straight",), junction_ok=_highway_merge, junction_extra=_cut_in_car,
+        approach=(50.0, 70.0), departure=(60.0, 80.0), trigger_offset=(0.0, 4.0)),
 }  # fmt: skip
 
 

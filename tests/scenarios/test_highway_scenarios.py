@@ -142,3 +142,39 @@ def test_interurban_actor_flow_clip_loads_with_its_flow(tmp_path):
     lane = town.get_waypoint(Location(float(source["x"]), float(source["y"]), float(source["z"])))
     on_flow_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (lane.road_id, lane.lane_id)]
     assert on_flow_lane and all(b["type_id"].startswith("vehicle.") for b in on_flow_lane)
+
+
+# ------------------------------------------------------------------------------------------------ HighwayCutIn
+
+
+def test_highway_cut_in_car_enters_the_ego_lane_ahead_of_it_from_the_ramp(tmp_path):
+    run, world_map, route = drive("highway", "HighwayCutIn", tmp=tmp_path)
+    assert run.success, run.infractions
+    ramp = world_map.get_waypoint(Location(*(float(route.scenarios[0].other_parameters["other_actor_location"][a])
+                                             for a in ("x", "y", "z"))))  # fmt: skip
+    lanes = {}  # the cut-in car's (road, lane) in order of appearance
+    entered = None
+    for ego, tick in zip(run.ego, run.scenario, strict=True):
+        for vid, (x, y, _, road, lane, _) in tick.items():
+            lanes.setdefault((road, lane), len(lanes))
+            if entered is None and (road, lane) == (ego[5], ego[6]):
+                # in the ego's lane: it must be ahead of the ego (a cut-in, not a rear-end)
+                yaw = math.radians(ego[3])
+                ahead = (x - ego[1]) * math.cos(yaw) + (y - ego[2]) * math.sin(yaw)
+                entered = ahead
+    assert next(iter(lanes)) == (ramp.road_id, ramp.lane_id)  # it starts on the on-ramp
+    assert entered is not None and 3.0 < entered < 30.0
+    assert len(run.type_ids) == 1 and next(iter(run.type_ids.values())).startswith("vehicle.")
+
+
+def test_highway_cut_in_clip_loads_with_the_cut_in_car(tmp_path):
+    clip = short_clip(tmp_path, "highway", "HighwayCutIn", keep=125.0)
+    assert clip.name.startswith("HighwayCutIn_Town102_Route")
+    assert load_clip(clip) > 0
+    town = load_map(TownSource(preset="highway").materialise(tmp_path / "town"))
+    route = placement.make_routes(town, "HighwayCutIn", 1, seed=0)[0]
+    spot = route.scenarios[0].other_parameters["other_actor_location"]
+    ramp = town.get_waypoint(Location(float(spot["x"]), float(spot["y"]), float(spot["z"])))
+    # the ramp entry is removed from background traffic: the car on the ramp lane is the cut-in car
+    on_ramp = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (ramp.road_id, ramp.lane_id)]
+    assert on_ramp and all(b["type_id"].startswith("vehicle.") for b in on_ramp)

@@ -155,7 +155,7 @@ def test_highway_cut_in_car_enters_the_ego_lane_ahead_of_it_from_the_ramp(tmp_pa
     lanes = {}  # the cut-in car's (road, lane) in order of appearance
     entered = None
     for ego, tick in zip(run.ego, run.scenario, strict=True):
-        for vid, (x, y, _, road, lane, _) in tick.items():
+        for x, y, _, road, lane, _ in tick.values():
             lanes.setdefault((road, lane), len(lanes))
             if entered is None and (road, lane) == (ego[5], ego[6]):
                 # in the ego's lane: it must be ahead of the ego (a cut-in, not a rear-end)

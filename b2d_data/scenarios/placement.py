@@ -287,6 +287,8 @@ def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict
 
 #: Highways are at least this fast (km/h); CARLA's Town04/06 highways are 90, generated ones 90–100.
 HIGHWAY_MIN_LIMIT = 80.0
+#: Largest heading change (deg) from an on-ramp's entry to the lane it merges into (Town04's curved ramps: ~50).
+MERGE_MAX_ANGLE = 60.0
 #: How far up the on-ramp HighwayCutIn's car waits (m before the merge junction).
 CUT_IN_RAMP_DISTANCE = 60.0
 
@@ -299,7 +301,7 @@ def _merge_lane(conn: JunctionLane, lanes: list[JunctionLane]) -> JunctionLane |
         return None
     for other in lanes:
         into_right = (other.exit.road_id, other.exit.lane_id) == (right.road_id, right.lane_id)
-        if into_right and other.turn == "straight" and other.entry.road_id != conn.entry.road_id:
+        if into_right and abs(other.angle) < MERGE_MAX_ANGLE and other.entry.road_id != conn.entry.road_id:
             return other
     return None
 

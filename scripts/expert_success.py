@@ -38,7 +38,7 @@ SCENARIOS: tuple[str, ...] = (
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
     # issue 13: highway and interurban
-    "InterurbanActorFlow", "HighwayCutIn",
+    "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

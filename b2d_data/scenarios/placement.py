@@ -285,6 +285,38 @@ def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict
     return []
 
 
+def _onto_interurban(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego turns from a side road onto a fast road that runs straight across the junction."""
+    # the limit just after a junction is still the previous road's (speed signs stand a little way in)
+    onto = move_along(conn.exit, 30.0, step=CHECK_STEP)
+    fast = town.speed_limit(onto) if onto is not None else 0.0
+    if not (fast > INTERURBAN_MIN_LIMIT and town.speed_limit(conn.entry) < fast):
+        return False
+    # flow 1 drives along the fast road on both sides of the junction (not into or out of a town street)
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        beyond = move_along(straight.exit, 30.0, step=CHECK_STEP) if straight is not None else None
+        if beyond is not None and min(town.speed_limit(entry), town.speed_limit(beyond)) > INTERURBAN_MIN_LIMIT:
+            return True
+    return False
+
+
+def _interurban_two_flows(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Flow 1 on the left entry's straight lane, 60 m before the junction to 40 m after it (flow 2 runs back on the
+    lanes beside it, into the ego's exit lane)."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 60.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"direction": {"value": "right"}, "start_actor_flow": _xml_location(source),
+                 "end_actor_flow": _xml_location(sink)}]  # fmt: skip
+    return []
+
+
 #: Highways are at least this fast (km/h); CARLA's Town04/06 highways are 90, generated ones 90–100.
 HIGHWAY_MIN_LIMIT = 80.0
 #: Largest heading change (deg) from an on-ramp's entry to the lane it merges into (Town04's curved ramps: ~50).
@@ -362,6 +394,10 @@ LAYOUTS: dict[str, Layout] = {
         "interurban", "an unsignalised junction where the route turns left off a road faster than 65 km/h, with an "
         "opposite entry going straight on for 40 m", turns=("left",), signalized=False,
         junction_extra=_interurban_flow, junction_ok=_interurban_turn),
+    "InterurbanAdvancedActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left from a side road onto a road faster than "
+        "65 km/h, with a left entry going straight on", turns=("left",), signalized=False,
+        junction_extra=_interurban_two_flows, junction_ok=_onto_interurban, departure=(70.0, 85.0)),
     "HighwayCutIn": Layout(
         "highway_ramps", "a highway (>= 80 km/h) crossed straight through a junction where an on-ramp joins the lane "
         "right of the route", turns=("straight",), junction_ok=_highway_merge, junction_extra=_cut_in_car,
@@ -558,6 +594,11 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 15, 16)),
             "source_dist_interval": {"from": _int(rng, 42, 53), "to": _int(rng, 78, 98)},
+        }
+    if scenario_type == "InterurbanAdvancedActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 16, 18)),
+            "source_dist_interval": {"from": _int(rng, 36, 42), "to": _int(rng, 84, 94)},
         }
     if scenario_type == "YieldToEmergencyVehicle":
         return {"distance": _value(_int(rng, 26, 30))}

@@ -178,3 +178,43 @@ def test_highway_cut_in_clip_loads_with_the_cut_in_car(tmp_path):
     # the ramp entry is removed from background traffic: the car on the ramp lane is the cut-in car
     on_ramp = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (ramp.road_id, ramp.lane_id)]
     assert on_ramp and all(b["type_id"].startswith("vehicle.") for b in on_ramp)
+
+
+# ------------------------------------------------------------------------------------------------ InterurbanAdvanced
+
+
+def _lane_of(town, spot: dict) -> tuple[int, int]:
+    wp = town.get_waypoint(Location(float(spot["x"]), float(spot["y"]), float(spot["z"])))
+    return wp.road_id, wp.lane_id
+
+
+def test_interurban_advanced_flows_cross_and_the_ego_merges_into_flow_2(tmp_path):
+    run, world_map, route = drive("interurban", "InterurbanAdvancedActorFlow", tmp=tmp_path)
+    assert run.success, run.infractions
+    params = route.scenarios[0].other_parameters
+    flow_1_source = _lane_of(world_map, params["start_actor_flow"])
+    flow_1_sink = world_map.get_waypoint(Location(*(float(params["end_actor_flow"][a]) for a in "xyz")))
+    flow_2_source = (flow_1_sink.road_id, -flow_1_sink.lane_id)  # the opposite lane beside flow 1's sink
+    first_lane = {}
+    for tick in run.scenario:
+        for vid, s in tick.items():
+            first_lane.setdefault(vid, (s[3], s[4]))
+    starts = set(first_lane.values())
+    assert flow_1_source in starts and flow_2_source in starts  # both flows ran
+    # the ego merged into flow 2: it drove through flow 2's sink, on the lane beside flow 1's source
+    source_1 = world_map.get_waypoint(Location(*(float(params["start_actor_flow"][a]) for a in "xyz")))
+    sink_2 = source_1.get_left_lane().transform.location
+    assert min(math.hypot(e[1] - sink_2.x, e[2] - sink_2.y) for e in run.ego) < 1.5
+    turn = (run.ego[-1][3] - run.ego[0][3] + 180.0) % 360.0 - 180.0
+    assert -120.0 < turn < -60.0
+
+
+def test_interurban_advanced_clip_loads_with_both_flows(tmp_path):
+    clip = short_clip(tmp_path, "interurban", "InterurbanAdvancedActorFlow", keep=400.0)
+    assert clip.name.startswith("InterurbanAdvancedActorFlow_Town103_Route")
+    assert load_clip(clip) > 0
+    town = load_map(TownSource(preset="interurban").materialise(tmp_path / "town"))
+    route = placement.make_routes(town, "InterurbanAdvancedActorFlow", 1, seed=0)[0]
+    source = _lane_of(town, route.scenarios[0].other_parameters["start_actor_flow"])
+    on_flow_1 = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == source]
+    assert on_flow_1 and all(b["type_id"].startswith("vehicle.") for b in on_flow_1)

@@ -218,3 +218,16 @@ def test_interurban_advanced_clip_loads_with_both_flows(tmp_path):
     source = _lane_of(town, route.scenarios[0].other_parameters["start_actor_flow"])
     on_flow_1 = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == source]
     assert on_flow_1 and all(b["type_id"].startswith("vehicle.") for b in on_flow_1)
+
+
+def test_highway_cut_in_places_on_town04_ramps(carla_maps_dir):
+    from b2d_data.maps import load_opendrive
+
+    town = load_opendrive(carla_maps_dir / "Town04.xodr")
+    routes = placement.make_routes(town, "HighwayCutIn", 3, seed=0)
+    for route in routes:
+        dense = DenseRoute.from_route(town, route)
+        car = _lane_of(town, route.scenarios[0].other_parameters["other_actor_location"])
+        # the car waits off the route (on the ramp), and the route runs on Town04's 90 km/h highway
+        assert car not in {(wp.road_id, wp.lane_id) for wp in dense.waypoints}
+        assert town.speed_limit(dense.waypoints[0]) >= 80.0

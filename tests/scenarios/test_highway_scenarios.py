@@ -112,6 +112,39 @@ def load_clip(clip: Path) -> int:
     return len(ds)
 
 
+def _lane_of(town, spot: dict) -> tuple[int, int]:
+    wp = town.get_waypoint(Location(float(spot["x"]), float(spot["y"]), float(spot["z"])))
+    return wp.road_id, wp.lane_id
+
+
+# (preset, type, metres of route kept, the parameter naming the scenario actors' lane, clip name prefix)
+CLIPS = (
+    ("interurban", "InterurbanActorFlow", 60.0, "start_actor_flow", "InterurbanActorFlow_Town103_Route"),
+    ("highway", "HighwayCutIn", 125.0, "other_actor_location", "HighwayCutIn_Town102_Route"),
+    (
+        "interurban",
+        "InterurbanAdvancedActorFlow",
+        400.0,
+        "start_actor_flow",
+        "InterurbanAdvancedActorFlow_Town103_Route",
+    ),
+)
+
+
+@pytest.mark.parametrize(("preset", "scenario_type", "keep", "spot", "prefix"), CLIPS)
+def test_one_clip_loads_with_the_scenario_actors_annotated(tmp_path, preset, scenario_type, keep, spot, prefix):
+    clip = short_clip(tmp_path, preset, scenario_type, keep)
+    assert clip.name.startswith(prefix)
+    assert load_clip(clip) > 0
+    town = load_map(TownSource(preset=preset).materialise(tmp_path / "town"))
+    route = placement.make_routes(town, scenario_type, 1, seed=0)[0]
+    lane = _lane_of(town, route.scenarios[0].other_parameters[spot])
+    # that lane is removed from background traffic (and the opposite traffic paused) at the trigger: the cars
+    # annotated on it are the scenario's, as dynamic vehicles with a CARLA vehicle blueprint
+    on_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == lane]
+    assert on_lane and all(b["type_id"].startswith("vehicle.") for b in on_lane)
+
+
 # ------------------------------------------------------------------------------------------------ InterurbanActorFlow
 
 
@@ -131,27 +164,13 @@ def test_interurban_actor_flow_crosses_the_junction_while_the_ego_turns_left(tmp
     assert all(t.startswith("vehicle.") for t in run.type_ids.values())
 
 
-def test_interurban_actor_flow_clip_loads_with_its_flow(tmp_path):
-    clip = short_clip(tmp_path, "interurban", "InterurbanActorFlow", keep=60.0)
-    assert clip.name.startswith("InterurbanActorFlow_Town103_Route")
-    assert load_clip(clip) > 0
-    # the opposite background is paused at the trigger: cars on the flow's lane are flow cars, annotated as vehicles
-    town = load_map(TownSource(preset="interurban").materialise(tmp_path / "town"))
-    route = placement.make_routes(town, "InterurbanActorFlow", 1, seed=0)[0]
-    source = route.scenarios[0].other_parameters["start_actor_flow"]
-    lane = town.get_waypoint(Location(float(source["x"]), float(source["y"]), float(source["z"])))
-    on_flow_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (lane.road_id, lane.lane_id)]
-    assert on_flow_lane and all(b["type_id"].startswith("vehicle.") for b in on_flow_lane)
-
-
 # ------------------------------------------------------------------------------------------------ HighwayCutIn
 
 
 def test_highway_cut_in_car_enters_the_ego_lane_ahead_of_it_from_the_ramp(tmp_path):
     run, world_map, route = drive("highway", "HighwayCutIn", tmp=tmp_path)
     assert run.success, run.infractions
-    ramp = world_map.get_waypoint(Location(*(float(route.scenarios[0].other_parameters["other_actor_location"][a])
-                                             for a in ("x", "y", "z"))))  # fmt: skip
+    ramp = _lane_of(world_map, route.scenarios[0].other_parameters["other_actor_location"])
     lanes = {}  # the cut-in car's (road, lane) in order of appearance
     entered = None
     for ego, tick in zip(run.ego, run.scenario, strict=True):
@@ -162,30 +181,12 @@ def test_highway_cut_in_car_enters_the_ego_lane_ahead_of_it_from_the_ramp(tmp_pa
                 yaw = math.radians(ego[3])
                 ahead = (x - ego[1]) * math.cos(yaw) + (y - ego[2]) * math.sin(yaw)
                 entered = ahead
-    assert next(iter(lanes)) == (ramp.road_id, ramp.lane_id)  # it starts on the on-ramp
+    assert next(iter(lanes)) == ramp  # it starts on the on-ramp
     assert entered is not None and 3.0 < entered < 30.0
     assert len(run.type_ids) == 1 and next(iter(run.type_ids.values())).startswith("vehicle.")
 
 
-def test_highway_cut_in_clip_loads_with_the_cut_in_car(tmp_path):
-    clip = short_clip(tmp_path, "highway", "HighwayCutIn", keep=125.0)
-    assert clip.name.startswith("HighwayCutIn_Town102_Route")
-    assert load_clip(clip) > 0
-    town = load_map(TownSource(preset="highway").materialise(tmp_path / "town"))
-    route = placement.make_routes(town, "HighwayCutIn", 1, seed=0)[0]
-    spot = route.scenarios[0].other_parameters["other_actor_location"]
-    ramp = town.get_waypoint(Location(float(spot["x"]), float(spot["y"]), float(spot["z"])))
-    # the ramp entry is removed from background traffic: the car on the ramp lane is the cut-in car
-    on_ramp = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (ramp.road_id, ramp.lane_id)]
-    assert on_ramp and all(b["type_id"].startswith("vehicle.") for b in on_ramp)
-
-
 # ------------------------------------------------------------------------------------------------ InterurbanAdvanced
-
-
-def _lane_of(town, spot: dict) -> tuple[int, int]:
-    wp = town.get_waypoint(Location(float(spot["x"]), float(spot["y"]), float(spot["z"])))
-    return wp.road_id, wp.lane_id
 
 
 def test_interurban_advanced_flows_cross_and_the_ego_merges_into_flow_2(tmp_path):
@@ -207,17 +208,6 @@ def test_interurban_advanced_flows_cross_and_the_ego_merges_into_flow_2(tmp_path
     assert min(math.hypot(e[1] - sink_2.x, e[2] - sink_2.y) for e in run.ego) < 1.5
     turn = (run.ego[-1][3] - run.ego[0][3] + 180.0) % 360.0 - 180.0
     assert -120.0 < turn < -60.0
-
-
-def test_interurban_advanced_clip_loads_with_both_flows(tmp_path):
-    clip = short_clip(tmp_path, "interurban", "InterurbanAdvancedActorFlow", keep=400.0)
-    assert clip.name.startswith("InterurbanAdvancedActorFlow_Town103_Route")
-    assert load_clip(clip) > 0
-    town = load_map(TownSource(preset="interurban").materialise(tmp_path / "town"))
-    route = placement.make_routes(town, "InterurbanAdvancedActorFlow", 1, seed=0)[0]
-    source = _lane_of(town, route.scenarios[0].other_parameters["start_actor_flow"])
-    on_flow_1 = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == source]
-    assert on_flow_1 and all(b["type_id"].startswith("vehicle.") for b in on_flow_1)
 
 
 def test_highway_cut_in_places_on_town04_ramps(carla_maps_dir):

@@ -3,6 +3,8 @@
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
+from b2d_data.scenarios.catalog.highway import HighwayCutIn
+from b2d_data.scenarios.catalog.interurban import InterurbanActorFlow, InterurbanAdvancedActorFlow
 from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
 from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
 from b2d_data.scenarios.catalog.parking_exit import ParkingExit
@@ -14,7 +16,8 @@ from b2d_data.scenarios.catalog.vanilla_turns import (
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
-    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionRightTurn",
+    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "HighwayCutIn", "InterurbanActorFlow", "InterurbanAdvancedActorFlow",
+    "NonSignalizedJunctionRightTurn",
     "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
 ]  # fmt: skip

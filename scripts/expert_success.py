@@ -37,6 +37,8 @@ SCENARIOS: tuple[str, ...] = (
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
+    "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays",
+    "HazardAtSideLaneTwoWays",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

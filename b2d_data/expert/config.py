@@ -31,6 +31,8 @@ CARLA_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
 #: The ego itself drives with ``blueprints.EGO_DYNAMICS`` (PDM-Lite's CARLA ego model, so the ego forecast keeps
 #: PDM-Lite's polynomial); on that model these parameters hold 2–25 m/s targets within −0.03 … +0.57 m/s, closer
 #: than the same procedure re-run on it (−0.16 … +0.57 m/s), so they are kept.
+#: Metres the builtin expert's ConstructionObstacleTwoWays shift extends before the board and after the last cone.
+BUILTIN_CONSTRUCTION_TWO_WAYS_EXTRA = 7.0
 BUILTIN_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
     0.039967819680455846, 0.30170846342589847, 0.254426199300406, -279.7896903295491, -8.884050257847589,
     18.4254759833086, 1.031266635497984,
@@ -219,5 +221,12 @@ class ExpertConfig:
 
     @classmethod
     def for_builtin(cls) -> ExpertConfig:
-        """The default config with the throttle regression re-fitted for the builtin simulator's dynamics."""
-        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS)
+        """The default config with the throttle regression re-fitted for the builtin simulator's dynamics.
+
+        ConstructionObstacleTwoWays gets a longer shift around the site: at the 50 km/h commit speed the steering aims
+        5 m ahead and turns back into the lane over the 4 m ramp before the ego's rear has cleared the cones on the
+        passing-side lane edge (+1.5 m clipped the last cone in every generated route).
+        """
+        extra = dict(cls().extra_length_two_ways)
+        extra["ConstructionObstacleTwoWays"] = BUILTIN_CONSTRUCTION_TWO_WAYS_EXTRA
+        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS, extra_length_two_ways=extra)

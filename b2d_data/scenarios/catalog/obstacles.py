@@ -308,8 +308,9 @@ class AccidentSite(RoadObstacle):
 class ConstructionSite(RoadObstacle):
     """A lane closed by a construction site (§2.2 #7, #8), LB2.0's ``_create_construction_setup``.
 
-    A traffic-warning board stands on the lane 5 m before the site, dirt debris 2 m after it; cones run along the
-    obstacle-side edge (0.85 × half the lane width out) from the site, 2 m apart, then across the lane, 1 m apart.
+    A traffic-warning board stands on the lane 5 m before the site, dirt debris 2 m after it; 4 cones run 2 m apart
+    along the lane edge on the passing side (0.85 × half the lane width out), then 3 cones 1 m apart back across the
+    lane toward the obstacle side: the closed lane's outline as the ego passes it.
     The ego's lane is taken out of the background traffic while the scenario runs.
     """
 
@@ -325,7 +326,7 @@ class ConstructionSite(RoadObstacle):
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         board = move_along(self.obstacle_waypoint, self.board_before, forward=False)
-        along = (self.edge_cones - 1) * self.edge_gap
+        along = self.edge_cones * self.edge_gap
         end = move_along(self.obstacle_waypoint, along)
         if board is None or end is None or board.is_junction or end.is_junction:
             raise ScenarioSetupError(
@@ -336,19 +337,18 @@ class ConstructionSite(RoadObstacle):
         self._removed_lane = False
 
     def cone_transforms(self) -> list[Transform]:
-        """Where the cones stand: along the obstacle-side edge, then across the lane."""
+        """Where the cones stand: along the lane edge away from the obstacle side, then across toward that side."""
         wp = self.obstacle_waypoint
-        edge = 0.85 * wp.lane_width / 2.0
+        edge = -self.sign * 0.85 * wp.lane_width / 2.0
         out = []
         current: Waypoint | None = wp
-        for k in range(self.edge_cones):
-            if k:
-                current = move_along(current, self.edge_gap) if current is not None else None
+        for _ in range(self.edge_cones):
+            current = move_along(current, self.edge_gap) if current is not None else None
             if current is None:
                 break
-            out.append(offset_transform(current, lateral=self.sign * edge))
+            out.append(offset_transform(current, lateral=edge))
         last = current or wp
-        out += [offset_transform(last, lateral=self.sign * (edge - self.across_gap * (k + 1)))
+        out += [offset_transform(last, lateral=edge + self.sign * self.across_gap * (k + 1))
                 for k in range(self.across_cones)]  # fmt: skip
         return out
 

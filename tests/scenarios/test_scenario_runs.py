@@ -195,7 +195,8 @@ def test_obstacles_block_the_ego_lane_and_two_way_ones_get_an_opposite_flow(town
     if scenario_type.startswith("Construction"):
         # §2.2 #7: the board, 4 + 3 cones on the lane; the construction warning sign beside the road; debris
         assert kinds.count("static.prop.constructioncone") == 7
-        assert {"static.prop.trafficwarning", "static.prop.warningconstruction", "static.prop.dirtdebris02"} <= set(kinds)
+        props = {"static.prop.trafficwarning", "static.prop.warningconstruction", "static.prop.dirtdebris02"}
+        assert props <= set(kinds)
         assert "static.prop.trafficwarning" in in_lane and in_lane.count("static.prop.constructioncone") == 7
     elif scenario_type == "ParkedObstacle":
         assert "static.prop.warningaccident" in kinds and len([t for t in in_lane if t.startswith("vehicle.")]) == 1

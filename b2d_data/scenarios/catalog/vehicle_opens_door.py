@@ -18,7 +18,7 @@ from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
 from b2d_data.scenarios.catalog.road_geometry import neighbour, offset_transform
 from b2d_data.scenarios.controllers import park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
-from b2d_data.scenarios.triggers import TimeToArrivalTrigger, Timer
+from b2d_data.scenarios.triggers import Timer, TimeToArrivalTrigger
 from b2d_data.sim.api import ActorState, ScenarioHint, Snapshot, VehicleDoor
 
 log = logging.getLogger(__name__)

@@ -125,6 +125,20 @@ def test_collects_exactly_n_clips_that_load(collection):
         assert read_jpeg(clip / "camera" / "rgb_top_down" / f"{n - 1:05d}.jpg").shape == (36, 64, 3)
 
 
+def test_eval_summary_of_the_collection_scores_its_own_routes(collection, tmp_path, capsys):
+    """``b2d-eval summary OUT/results``, as ``b2d-collect --help`` suggests: over the N routes run, not 220."""
+    from b2d_data.cli.eval import main as eval_main
+
+    out = tmp_path / "summary.json"
+    assert eval_main(["summary", str(collection / "results"), "--out", str(out)]) == 0
+    data = json.loads(out.read_text())["result_sets"][0]
+    finals = rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))
+    assert len(finals) == N and data["expected_routes"] == N
+    assert data["driving_score"] == pytest.approx(sum(r["score_composed"] for r in finals) / N)
+    assert data["success_rate"] == pytest.approx(100.0)  # both attempts made clips
+    assert f"[results] {N}: b2d-collect collection" in capsys.readouterr().out
+
+
 def _resimulate(collection: Path, clip: Path, short_routes) -> list[dict]:
     """Run the clip's route again without sensors, recording the simulator state at every recorded tick."""
     from b2d_data.expert import Expert, ExpertConfig
@@ -178,6 +192,93 @@ def test_annotations_agree_with_the_simulator(collection, short_routes):
         for key in ("next_command", "command_near", "command_far"):
             assert anno[key] in valid_commands
     assert seen_scenario_actor, "the accident's actors never showed up within 100 m"
+
+
+def _ego_xy(anno: dict, world_xyz: list[float]) -> tuple[float, float]:
+    """A world point in the annotation's ego frame (x forward, y right)."""
+    p = np.asarray(anno["bounding_boxes"][0]["world2ego"]) @ np.array([*world_xyz, 1.0])
+    return float(p[0]), float(p[1])
+
+
+def test_expert_assessment_decodes_to_the_expert_and_the_scene(collection):
+    """Every frame has its npz (format.md §2.8), whose action and raster agree with the frame's annotation."""
+    import zipfile
+
+    from b2d_data.codecs.format_info import read_format_info
+    from b2d_data.format import expert_feature as ef
+    from b2d_data.format.expert_actions import ACTIONS, action_control
+
+    near_straight = vehicles_checked = 0
+    for clip in _clips(collection):
+        annos = [read_anno(p) for p in sorted((clip / "anno").glob("*.json.gz"))]
+        names = sorted(p.name for p in (clip / "expert_assessment").iterdir())
+        assert names == sorted(f"{k - 1:05d}.npz" for k in range(len(annos)))  # -0001.npz first
+        info = read_format_info(clip)
+        assert info is not None and info.expert_assessment and info.expert_feature == ef.layout_record()
+        progress = []
+        for k, anno in enumerate(annos):
+            path = clip / "expert_assessment" / f"{k - 1:05d}.npz"
+            with zipfile.ZipFile(path) as z:  # np.savez(path, vector): one unnamed, uncompressed array
+                assert [(e.filename, e.compress_type) for e in z.infolist()] == [("arr_0.npy", zipfile.ZIP_STORED)]
+            vec = np.load(path)["arr_0"]
+            assert vec.shape == (1538,)
+            progress.append(float(vec[-2]))
+            # Action → controls within the table's resolution of the annotation's control (format/expert_actions.py:
+            # 0.21 while |steer| ≤ 0.1; 0.59 anywhere else, the farthest forward control (1, ±1) being √(0.3² + 0.5²)
+            # from (0.7, ±0.5)); a brake decodes to the full-brake action.
+            action = action_control(vec[-1])
+            throttle, steer, brake = anno["throttle"], anno["steer"], anno["brake"]
+            if brake >= 0.5:
+                assert action == ACTIONS[0]
+            else:
+                gap = math.hypot(action.throttle - throttle, action.steer - steer)
+                assert action.brake == 0.0 and not action.reverse
+                if abs(steer) <= 0.1:
+                    near_straight += 1
+                    assert gap <= 0.21, (clip.name, k, anno["throttle"], anno["steer"], action)
+                else:
+                    assert gap <= 0.59
+            # Feature → the raster of what the simulator held (the annotation is the same snapshot).
+            raster = ef.unflatten(vec[:-2])
+            assert np.allclose(raster[ef.SPEED], min(max(anno["speed"] / 25.0, 0.0), 1.0), atol=1e-6)
+            assert raster[ef.DRIVABLE, 7:9, 7:9].any() and raster[ef.ROUTE, 7:9, 7:9].any()  # the ego's own cells
+            for channel, cls in ((ef.VEHICLES, "vehicle"), (ef.WALKERS, "walker")):
+                boxes = [b for b in anno["bounding_boxes"][1:] if b["class"] == cls]
+                centres = [_ego_xy(anno, b["center"]) for b in boxes]
+                for box, (x, y) in zip(boxes, centres):
+                    cell = ef.cell_of(x, y)
+                    on_edge = min(abs(x / 2.0 - round(x / 2.0)), abs(y / 2.0 - round(y / 2.0))) < 0.03
+                    if cell is not None and not on_edge:  # the cell holding a box centre overlaps the box
+                        assert raster[channel][cell] == 1.0, (clip.name, k, box["id"], cell)
+                        vehicles_checked += channel == ef.VEHICLES
+                # Conversely, a lit cell lies within reach of a box: centre distance ≤ cell and box half diagonals.
+                for r, c in zip(*np.nonzero(raster[channel])):
+                    cx, cy = 16.0 - 2.0 * r - 1.0, -16.0 + 2.0 * c + 1.0
+                    assert any(
+                        math.hypot(cx - x, cy - y) <= math.sqrt(2.0) + math.hypot(*b["extent"][:2]) + 0.05
+                        for b, (x, y) in zip(boxes, centres)
+                    ), (clip.name, k, cls, (r, c))
+            stops = [b for b in anno["bounding_boxes"] if b.get("state") in (0, 1) or "stop" in b.get("type_id", "")]
+            assert stops or not raster[ef.STOP].any()
+        assert progress == sorted(progress) and 0.0 <= progress[0] <= 0.1 and progress[-1] <= 1.0
+    assert near_straight > 0 and vehicles_checked > 0  # the tight bound and the vehicle cells were exercised
+
+
+def test_clip_dataset_returns_the_expert_assessment(collection):
+    from b2d_data import ClipDataset
+    from b2d_data.format import expert_feature as ef
+    from b2d_data.format.expert_actions import action_control
+
+    clip = _clips(collection)[0]
+    flat = ClipDataset(collection, index="memory", clips=[clip.name], expert=True, cameras=(), lidar=False)
+    bev = ClipDataset(collection, index="memory", clips=[clip.name], expert_bev=True, cameras=(), lidar=False)
+    for k in (0, len(flat) - 1):
+        vec = np.load(clip / "expert_assessment" / f"{k - 1:05d}.npz")["arr_0"]
+        s, b = flat[k], bev[k]
+        assert s["frame"] == k and np.array_equal(s["expert_feature"], vec[:-2])
+        assert s["expert_value"] == vec[-2] and s["expert_action"] == int(vec[-1])
+        assert np.array_equal(s["expert_control"], action_control(vec[-1]).as_array())
+        assert b["expert_feature"].shape == (6, 16, 16) and np.array_equal(b["expert_feature"], ef.unflatten(vec[:-2]))
 
 
 def _descendants(pid: int) -> set[int]:
@@ -239,19 +340,31 @@ def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeo
     return helpers
 
 
-def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path):
+def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path, capsys):
     out = tmp_path / "data"
     out.mkdir()
     shutil.copytree(collection / "maps", out / "maps")  # the HD-map export is tested above; skip its 5 s here
     args = _args(short_routes, out, "--encode-workers", "1")  # with an encoder process, which must die too
     helpers = _kill_mid_collection(args, out)
     assert len(_clips(out)) == 1 and _temporaries(out), "expected one clip and one half-written clip"
+    half_written = sorted(str(p.relative_to(out)) for p in out.glob(".*.tmp-*"))
     before = rl.read_run_log(out / rl.LOG_FILE)
     assert len(rl.interrupted_routes(before)) == 1
+    killed_route = rl.interrupted_routes(before)[0]
     _assert_all_exit(helpers)
 
     assert main(args) == 2  # a used folder needs --resume
+    capsys.readouterr()
     assert main([*args, "--resume"]) == 0
+    # The resume says what it kept and what it threw away, and the run log records both.
+    err = capsys.readouterr().err
+    assert "resume: kept 1 complete clip(s) from 1 finished attempt(s)" in err, err
+    assert f"discarded {len(half_written)} half-written" in err and f"run again: {killed_route}" in err, err
+    log_records = rl.read_run_log(out / rl.LOG_FILE)
+    discarded = [r for r in log_records if r["event"] == rl.EVENT_DISCARDED]
+    assert sorted(r["path"] for r in discarded) == half_written
+    interrupted = [r for r in log_records if r["event"] == rl.EVENT_INTERRUPTED]
+    assert [(r["route_id"], r["detected"]) for r in interrupted] == [(killed_route, "on resume")]
 
     clips = _clips(out)
     assert len(clips) == N
@@ -320,6 +433,36 @@ def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection,
         assert (out / "results" / f"{r['clip']}.json").is_file()
 
 
+@pytest.mark.parametrize("workers", [1, 2], ids=["inline", "pool"])
+def test_jobs_report_their_frames_to_the_driver(short_routes, tmp_path, workers):
+    """Each job's first frame report, and more while its route runs, reach the driver's ``on_frames``."""
+    from b2d_data.cli.collect import _config, build_parser
+    from b2d_data.collection.backends import InlineBackend, ProcessPoolBackend
+    from b2d_data.collection.plan import plan_collection
+    from b2d_data.collection.progress import frames_of
+
+    config = _config(build_parser().parse_args([*_args(short_routes, tmp_path / "r"), "--no-sensors"]))
+    tasks = plan_collection(config).scenarios[0].tasks[:workers]
+    reports = []
+    if workers == 1:
+        backend = InlineBackend(tmp_path / "r", config, on_frames=reports.append)
+    else:
+        backend = ProcessPoolBackend(tmp_path / "r", config, workers, on_frames=reports.append)
+    results = {}
+    try:
+        for task in tasks:
+            backend.submit(task)
+        while backend.running():
+            results.update((str(task.route.id), result) for task, result in backend.wait(timeout=1.0))
+    finally:
+        backend.close()
+    assert sorted(results) == sorted(str(t.route.id) for t in tasks)
+    for route_id, result in results.items():
+        frames = [r.frames for r in reports if r.route_id == route_id]
+        assert frames and frames[0] == 1 and frames == sorted(frames), (route_id, frames)
+        assert frames[-1] <= frames_of(result.ticks, result.frames)
+
+
 def test_ray_requested_without_ray_is_a_clear_error(short_routes, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
     assert main([*_args(short_routes, tmp_path / "r"), "--ray", "auto"]) == 2
@@ -363,6 +506,49 @@ def test_resume_adopts_what_reached_the_disk_before_a_crash(tmp_path):
     assert finals["2"]["status"] == "failed" and finals["2"]["clip_path"] == f"failed/{kept_failed}"
     assert not (out / kept_failed).exists() and (out / "failed" / kept_failed).is_dir()
     assert not (out / lost).exists()
+
+
+@pytest.mark.parametrize(
+    "how", ["ctrl-c on two workers", "kill (SIGTERM) in this process"], ids=["sigint-pool", "sigterm-inline"]
+)
+def test_interrupting_prints_no_traceback_and_records_the_routes(collection, short_routes, tmp_path, how):
+    """Ctrl-C reaches every process of the terminal's group; kill only the driver. Both end quietly."""
+    out = tmp_path / "data"
+    out.mkdir()
+    shutil.copytree(collection / "maps", out / "maps")
+    ctrl_c = how.startswith("ctrl-c")
+    args = _args(short_routes, out, "--encode-workers", "1", *(["--workers", "2"] if ctrl_c else []))
+    stderr_path = tmp_path / "stderr.txt"
+    with open(stderr_path, "wb") as stderr:
+        proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], stdout=subprocess.DEVNULL,
+                                stderr=stderr, start_new_session=True)  # fmt: skip
+        helpers: set[int] = set()
+        try:
+            deadline = time.monotonic() + 240
+            while time.monotonic() < deadline and proc.poll() is None:
+                helpers |= _descendants(proc.pid)
+                if [p for p in out.glob(".*.tmp-*") if p.is_dir() and len(list(p.glob("anno/*.json.gz"))) >= 3]:
+                    break
+                time.sleep(0.05)
+            helpers |= _descendants(proc.pid)
+            assert proc.poll() is None, "the collection ended before it could be interrupted"
+            if ctrl_c:
+                os.killpg(proc.pid, signal.SIGINT)
+            else:
+                os.kill(proc.pid, signal.SIGTERM)
+            assert proc.wait(timeout=60) == 130
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    err = stderr_path.read_text()
+    assert "Traceback" not in err and "leaked semaphore" not in err, err
+    assert err.strip().splitlines()[-1] == "b2d-collect: interrupted; run the same command with --resume to finish"
+    _assert_all_exit(helpers)
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    interrupted = [r["route_id"] for r in records if r["event"] == rl.EVENT_INTERRUPTED]
+    assert interrupted and sorted(interrupted) == sorted(rl.interrupted_routes(records))
+    assert all(r["detected"] == "on interrupt" for r in records if r["event"] == rl.EVENT_INTERRUPTED)
 
 
 def _assert_all_exit(pids: set[int], timeout: float = 10.0) -> None:

@@ -229,6 +229,11 @@ class ExpertConfig:
         the passing-side lane edge (+1.5 m clipped the last cone in every generated route); VehicleOpensDoorTwoWays,
         because here an open door widens the car's collision box by 0.9 m (CARLA's does not), and with −2 m the ego
         waits nose to tail with the car and clips the door while swinging out.
+
+        InvadingTurn keeps the full offset next to a shoulder: PDM-Lite takes 0.3 m off it for a fence that may stand
+        there, which leaves ~0 of the 0.18–0.34 m beside the generated streets' gutter (a 0.3–0.5 m shoulder lane
+        with no fence), and the invading cars then touch the ego.
         """
         extra = {**cls().extra_length_two_ways, **BUILTIN_EXTRA_LENGTH_TWO_WAYS}
-        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS, extra_length_two_ways=extra)
+        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS, extra_length_two_ways=extra,
+                   invading_turn_fence_margin=0.0)

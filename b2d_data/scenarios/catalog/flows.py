@@ -54,7 +54,8 @@ class ActorFlow:
     """A flow of cars along ``path`` (lane waypoints); ``constant_velocity`` selects the controller.
 
     ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``.
-    ``lateral_offset`` (m, right positive) makes the lane-following vehicles drive beside the lane centre.
+    ``lateral_offset`` (m, right positive) makes the lane-following vehicles drive beside the lane centre;
+    ``lateral_margin`` widens their swept path when they look for vehicles to stop for.
     """
 
     def __init__(
@@ -68,6 +69,7 @@ class ActorFlow:
         constant_velocity: bool = True,
         initial_actors: bool = False,
         lateral_offset: float = 0.0,
+        lateral_margin: float = 0.3,
     ) -> None:
         if len(path) < 2:
             raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
@@ -80,6 +82,7 @@ class ActorFlow:
         self.sink_distance = sink_distance
         self.constant_velocity = constant_velocity
         self.lateral_offset = float(lateral_offset)
+        self.lateral_margin = float(lateral_margin)
         self.vehicles: list[_FlowVehicle] = []
         self._cars = blueprints.background_car_ids()
         self._gap = self._draw_gap()
@@ -128,7 +131,8 @@ class ActorFlow:
                 actor_id, Vector3D(math.cos(yaw) * self.speed, math.sin(yaw) * self.speed, 0.0)
             )
         else:
-            agent = LaneFollowingAgent(self.sim, actor_id, rest, self.speed, lateral_offset=self.lateral_offset)
+            agent = LaneFollowingAgent(self.sim, actor_id, rest, self.speed, lateral_offset=self.lateral_offset,
+                                       lateral_margin=self.lateral_margin)
         self.vehicles.append(_FlowVehicle(actor_id, agent))
         return actor_id
 

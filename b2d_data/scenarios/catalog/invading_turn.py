@@ -84,14 +84,19 @@ class InvadingTurn(Scenario):
             self.cones.append(self.spawn(CONSTRUCTION_CONE, transform))
 
     def start(self, snapshot: Snapshot) -> None:
-        """Empty the ego's lane and the opposite traffic, start the invading flow."""
+        """Empty the ego's lane and the opposite traffic, start the invading flow.
+
+        The flow cars stop only for a box inside their swept path (no margin): the ego keeping right leaves them
+        a few tenths of a metre, and with a margin each would stop before it and wait for ever.
+        """
         bg = self.ctx.sim.background
         bg.remove_road_lane(self.trigger_waypoint)
         bg.change_opposite_behavior(active=False)
         self._started = True
         limit = self.ctx.map.speed_limit(self.trigger_waypoint)
         self._flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.flow_waypoints, limit / 3.6,
-                               (self.flow_gap, self.flow_gap), constant_velocity=False, lateral_offset=self.lateral)  # fmt: skip
+                               (self.flow_gap, self.flow_gap), constant_velocity=False, lateral_offset=self.lateral,
+                               lateral_margin=0.0)  # fmt: skip
         self._flow.start()
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:

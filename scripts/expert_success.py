@@ -37,6 +37,8 @@ SCENARIOS: tuple[str, ...] = (
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
+    # issue 12
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -272,6 +272,12 @@ LAYOUTS: dict[str, Layout] = {
     "SignalizedJunctionLeftTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns left, with an opposite entry going "
         "straight", turns=("left",), signalized=True, junction_extra=_flow_from("opposite")),
+    "NonSignalizedJunctionLeftTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=False, junction_extra=_flow_from("opposite")),
+    "SignalizedJunctionRightTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
     "NonSignalizedJunctionRightTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=False, junction_extra=_flow_from("left")),
@@ -462,6 +468,16 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 9, 10)),
             "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 28)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurn":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "SignalizedJunctionRightTurn":
+        return {
+            "flow_speed": _value(_int(rng, 10, 12)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 28, 38)},
         }
     if scenario_type == "NonSignalizedJunctionRightTurn":
         return {

@@ -3,7 +3,12 @@
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
-from b2d_data.scenarios.catalog.junction_turns import NonSignalizedJunctionRightTurn, SignalizedJunctionLeftTurn
+from b2d_data.scenarios.catalog.junction_turns import (
+    NonSignalizedJunctionLeftTurn,
+    NonSignalizedJunctionRightTurn,
+    SignalizedJunctionLeftTurn,
+    SignalizedJunctionRightTurn,
+)
 from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
 from b2d_data.scenarios.catalog.parking_exit import ParkingExit
 from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
@@ -14,7 +19,8 @@ from b2d_data.scenarios.catalog.vanilla_turns import (
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
-    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionRightTurn",
-    "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn",
+    "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionLeftTurn",
+    "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit",
+    "SignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
 ]  # fmt: skip

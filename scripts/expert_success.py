@@ -38,7 +38,8 @@ SCENARIOS: tuple[str, ...] = (
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
     # issue 12
-    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn",
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -28,6 +28,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     connection,
     entries_from,
     find_side_lane,
+    flow_into_exit,
     is_driving,
     is_outermost_driving,
     junction_lanes,
@@ -248,6 +249,14 @@ def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], l
     return check
 
 
+def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """An opposite entry turning right onto the road the ego turns left into."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        if flow_into_exit(lanes, entry, conn.exit) is not None:
+            return [{}]
+    return []
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -275,6 +284,12 @@ LAYOUTS: dict[str, Layout] = {
     "NonSignalizedJunctionLeftTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry going "
         "straight", turns=("left",), signalized=False, junction_extra=_flow_from("opposite")),
+    "SignalizedJunctionLeftTurnEnterFlow": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry turning "
+        "right into the same road", turns=("left",), signalized=True, junction_extra=_flow_into_ego_exit),
+    "NonSignalizedJunctionLeftTurnEnterFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry "
+        "turning right into the same road", turns=("left",), signalized=False, junction_extra=_flow_into_ego_exit),
     "SignalizedJunctionRightTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
@@ -473,6 +488,16 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 8, 10)),
             "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "SignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 17, 19), "to": _int(rng, 26, 30)},
         }
     if scenario_type == "SignalizedJunctionRightTurn":
         return {

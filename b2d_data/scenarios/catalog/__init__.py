@@ -5,8 +5,10 @@ from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
 from b2d_data.scenarios.catalog.junction_turns import (
     NonSignalizedJunctionLeftTurn,
+    NonSignalizedJunctionLeftTurnEnterFlow,
     NonSignalizedJunctionRightTurn,
     SignalizedJunctionLeftTurn,
+    SignalizedJunctionLeftTurnEnterFlow,
     SignalizedJunctionRightTurn,
 )
 from b2d_data.scenarios.catalog.obstacles import Accident, ParkedObstacleTwoWays
@@ -20,7 +22,7 @@ from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
     "Accident", "DynamicObjectCrossing", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionLeftTurn",
-    "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit",
-    "SignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit",
+    "SignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow", "SignalizedJunctionRightTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
 ]  # fmt: skip

@@ -23,7 +23,13 @@ from b2d_data.scenarios.catalog.junctions import (
     lights_of_lane,
     rightmost_driving,
 )
-from b2d_data.scenarios.catalog.road_geometry import connection, entries_from, same_direction_lanes
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    connection,
+    entries_from,
+    flow_into_exit,
+    same_direction_lanes,
+)
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
 from b2d_data.sim.api import Snapshot
@@ -55,18 +61,18 @@ class JunctionFlowTurn(JunctionScenario):
         self.sink_distance = self.sink_factor * self.flow_speed
         options = []
         for entry in self.entry_choices(entries):
-            straight = connection(self.lanes, entry, "straight")
-            if straight is None:
+            conn = self.flow_connection(entry)
+            if conn is None:
                 continue
             try:
-                path = junction_flow_path(straight, self.source_factor * self.flow_speed, self.sink_distance)
+                path = junction_flow_path(conn, self.source_factor * self.flow_speed, self.sink_distance)
             except ScenarioSetupError:
                 continue
             options.append((entry, path))
         if not options:
             raise ScenarioSetupError(
-                f"{self.name}: layout missing: no {self.flow_direction} entry of junction {self.junction.id} goes "
-                f"straight on for {self.sink_distance:.0f} m"
+                f"{self.name}: layout missing: no {self.flow_direction} entry of junction {self.junction.id} "
+                f"{self.flow_move} for {self.sink_distance:.0f} m"
             )
         self.source_entry, self.path = self.pick(options)
         self.source, self.sink = self.path[0], self.path[-1]
@@ -78,6 +84,15 @@ class JunctionFlowTurn(JunctionScenario):
     def entry_choices(self, entries: list[Waypoint]) -> list[Waypoint]:
         """The entry lanes the flow may use."""
         return entries
+
+    @property
+    def flow_move(self) -> str:
+        """What the flow does through the junction, for error messages."""
+        return "goes straight on"
+
+    def flow_connection(self, entry: Waypoint) -> JunctionLane | None:
+        """The flow's way through the junction from ``entry`` (straight on), None if there is none."""
+        return connection(self.lanes, entry, "straight")
 
     def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
         """Which of the usable entries (with their flow paths) the flow takes."""
@@ -176,6 +191,35 @@ class NonSignalizedJunctionLeftTurn(LeftTurnAcrossFlow):
     """Left turn across an oncoming flow at an unsignalised junction, other entries stopped (§2.2 #25)."""
 
     xml_type = "NonSignalizedJunctionLeftTurn"
+    signalized = False
+
+
+class LeftTurnEnterFlow(LeftTurnAcrossFlow):
+    """Bench2Drive's left turn into a flow: the opposite flow turns right into the ego's exit road (§2.2 #24, #26)."""
+
+    @property
+    def flow_move(self) -> str:
+        """What the flow does through the junction, for error messages."""
+        return "turns right into the ego's exit road"
+
+    def flow_connection(self, entry: Waypoint) -> JunctionLane | None:
+        """The right turn from ``entry`` that ends on the ego's exit road."""
+        return flow_into_exit(self.lanes, entry, self.ego_exit)
+
+
+@register
+class SignalizedJunctionLeftTurnEnterFlow(LeftTurnEnterFlow):
+    """Left turn at a signalised junction, merging into the opposite flow turning right (§2.2 #24)."""
+
+    xml_type = "SignalizedJunctionLeftTurnEnterFlow"
+    signalized = True
+
+
+@register
+class NonSignalizedJunctionLeftTurnEnterFlow(LeftTurnEnterFlow):
+    """Left turn at an unsignalised junction, merging into the opposite flow turning right (§2.2 #26)."""
+
+    xml_type = "NonSignalizedJunctionLeftTurnEnterFlow"
     signalized = False
 
 

@@ -257,6 +257,32 @@ def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[d
     return []
 
 
+#: EnterActorFlow's flow starts this far before the junction (less where an earlier junction is nearer) and ends
+#: this far after it (m), as in Bench2Drive's routes (45-60 m before, 20-25 m after).
+ENTER_FLOW_BACK, ENTER_FLOW_AFTER = 55.0, 22.0
+
+
+def _xyz(wp: Waypoint) -> dict[str, str]:
+    loc = wp.transform.location
+    return {"x": f"{loc.x:.1f}", "y": f"{loc.y:.1f}", "z": f"{loc.z:.1f}"}
+
+
+def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A left entry whose straight lane reaches the road the ego turns right into: the flow's start and end."""
+    from b2d_data.scenarios.catalog.junctions import walk_back_to_source
+
+    for entry in entries_from(lanes, conn.entry, "left"):
+        flow = flow_into_exit(lanes, entry, conn.exit, turn="straight")
+        if flow is None:
+            continue
+        end = move_along(flow.exit, ENTER_FLOW_AFTER, step=2.0)
+        if end is None or end.is_junction:
+            continue
+        start = walk_back_to_source(flow.entry, ENTER_FLOW_BACK)
+        return [{"start_actor_flow": _xyz(start), "end_actor_flow": _xyz(end)}]
+    return []
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -290,6 +316,10 @@ LAYOUTS: dict[str, Layout] = {
     "NonSignalizedJunctionLeftTurnEnterFlow": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry "
         "turning right into the same road", turns=("left",), signalized=False, junction_extra=_flow_into_ego_exit),
+    "EnterActorFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
+        "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
+        junction_extra=_enter_flow),
     "SignalizedJunctionRightTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
@@ -498,6 +528,11 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 8, 10)),
             "source_dist_interval": {"from": _int(rng, 17, 19), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "EnterActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 12, 14)),
+            "source_dist_interval": {"from": _int(rng, 25, 30), "to": _int(rng, 33, 39)},
         }
     if scenario_type == "SignalizedJunctionRightTurn":
         return {

@@ -39,7 +39,7 @@ SCENARIOS: tuple[str, ...] = (
     "ParkingExit",
     # issue 12
     "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
-    "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -283,6 +283,28 @@ def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str,
     return []
 
 
+#: CrossingBicycleFlow's bicycles start this far before the junction on the bike lane (m).
+BICYCLE_FLOW_BACK = 30.0
+
+
+def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A bike lane right of an opposite entry that runs straight through the junction: the flow's start and end."""
+    from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
+    from b2d_data.scenarios.catalog.junctions import walk_back_to_source
+
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        bike = find_side_lane(entry, "right", LaneType.BIKING)
+        if bike is None:
+            continue
+        start = walk_back_to_source(bike, BICYCLE_FLOW_BACK)
+        try:
+            path = bicycle_path(start, conn.junction_id)
+        except ScenarioError:
+            continue
+        return [{"start_actor_flow": _xyz(start), "end_actor_flow": _xyz(path[-1])}]
+    return []
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -320,6 +342,9 @@ LAYOUTS: dict[str, Layout] = {
         "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
         "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
         junction_extra=_enter_flow),
+    "CrossingBicycleFlow": Layout(
+        "bike_lane", "a junction where the route turns left across an opposite bike lane that continues straight "
+        "through it", turns=("left",), junction_extra=_bicycle_flow),
     "SignalizedJunctionRightTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
@@ -533,6 +558,11 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 12, 14)),
             "source_dist_interval": {"from": _int(rng, 25, 30), "to": _int(rng, 33, 39)},
+        }
+    if scenario_type == "CrossingBicycleFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 9)),
+            "source_dist_interval": {"from": _int(rng, 13, 15), "to": _int(rng, 25, 30)},
         }
     if scenario_type == "SignalizedJunctionRightTurn":
         return {

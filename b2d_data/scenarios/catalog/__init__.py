@@ -1,6 +1,7 @@
 """The implemented scenario types, one module per behaviour family; importing this package registers them."""
 
 from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
+from b2d_data.scenarios.catalog.crossing_bicycles import CrossingBicycleFlow
 from b2d_data.scenarios.catalog.enter_flow import EnterActorFlow
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
@@ -22,7 +23,7 @@ from b2d_data.scenarios.catalog.vanilla_turns import (
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
-    "Accident", "DynamicObjectCrossing", "EnterActorFlow", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionLeftTurn",
+    "Accident", "CrossingBicycleFlow", "DynamicObjectCrossing", "EnterActorFlow", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionLeftTurn",
     "NonSignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit",
     "SignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow", "SignalizedJunctionRightTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,7 +59,8 @@ class _FlowVehicle:
 class ActorFlow:
     """A flow of cars along ``path`` (lane waypoints); ``constant_velocity`` selects the controller.
 
-    ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``.
+    ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``;
+    ``blueprint_ids`` replaces the background cars the vehicles are drawn from (e.g. bicycles for a BicycleFlow).
     """
 
     def __init__(
@@ -71,6 +73,7 @@ class ActorFlow:
         sink_distance: float = 2.0,
         constant_velocity: bool = True,
         initial_actors: bool = False,
+        blueprint_ids: Sequence[str] | None = None,
     ) -> None:
         if len(path) < 2:
             raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
@@ -83,7 +86,9 @@ class ActorFlow:
         self.sink_distance = sink_distance
         self.constant_velocity = constant_velocity
         self.vehicles: list[_FlowVehicle] = []
-        self._cars = blueprints.background_car_ids()
+        self._cars = list(blueprint_ids) if blueprint_ids is not None else blueprints.background_car_ids()
+        if not self._cars:
+            raise ScenarioSetupError("an actor flow needs at least one blueprint to draw its vehicles from")
         self._gap = self._draw_gap()
         self._last_spawned: int | None = None
         self._initial = initial_actors

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
+from b2d_data import data
 from b2d_data.format.transform import Location
 from b2d_data.maps import load_opendrive
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 LOAD_BOUND_S = 5.0
 GET_WAYPOINT_BOUND_S = 1e-3
 NEXT_BOUND_S = 1e-3
@@ -45,8 +45,8 @@ def _routes(path: Path) -> dict[str, list[list[Location]]]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--maps", type=Path, default=SHARED / "carla_maps", help="folder of .xodr towns")
-    parser.add_argument("--routes", type=Path, default=SHARED / "bench2drive" / "bench2drive220.xml")
+    parser.add_argument("--maps", type=Path, default=data.carla_maps_dir(), help="folder of .xodr towns")
+    parser.add_argument("--routes", type=Path, default=data.bench2drive_file("bench2drive220.xml"))
     parser.add_argument("--queries", type=int, default=2000, help="get_waypoint / next calls per town")
     args = parser.parse_args()
     routes = _routes(args.routes)

@@ -16,6 +16,7 @@ import statistics
 import time
 from pathlib import Path
 
+from b2d_data import data
 from b2d_data.format.weather import preset
 from b2d_data.sim.api import RigConfig
 from b2d_data.sim.builtin.sensors.map_mesh import build_static_scene
@@ -24,7 +25,7 @@ from b2d_data.sim.builtin.sensors.synthetic import actor_state, crossroads_layou
 from b2d_data.viz.town_scene import town_snapshot
 
 BUDGET_S = 0.25
-DEFAULT_TOWN = Path(__file__).resolve().parents[2] / "shared" / "data" / "carla_maps" / "Town10HD.xodr"
+DEFAULT_TOWN = data.carla_maps_dir() / "Town10HD.xodr"
 
 
 def _synthetic_snapshot(weather):

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from b2d_data import data
 from b2d_data.format import leaderboard as lb
 from b2d_data.format.transform import Location
 from b2d_data.maps import LaneType, Map, load_opendrive
@@ -45,7 +46,6 @@ from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger("traffic_soak")
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 CARLA_TOWNS = ("Town01", "Town04", "Town06", "Town07", "Town10HD")
 PRESETS = ("all", "urban", "highway", "interurban")
 ROUTE_LENGTH = 150.0
@@ -252,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0, help="first seed; route k of a town uses seed + k")
     p.add_argument("--only", default="", help="run only these town:seed pairs (comma-separated)")
     p.add_argument("--seconds", type=float, default=120.0, help="game-time cap per route")
-    p.add_argument("--xodr-dir", type=Path, default=SHARED / "carla_maps")
+    p.add_argument("--xodr-dir", type=Path, default=data.carla_maps_dir())
     p.add_argument("-v", "--verbose", action="store_true")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,

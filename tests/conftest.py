@@ -1,4 +1,4 @@
-"""Shared fixtures: where the real Bench2Drive / CARLA files live."""
+"""Shared fixtures: the real Bench2Drive / CARLA files the package ships (b2d_data/data)."""
 
 from __future__ import annotations
 
@@ -6,24 +6,16 @@ from pathlib import Path
 
 import pytest
 
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+from b2d_data import data
 
 
 @pytest.fixture(scope="session")
-def shared_data() -> Path:
-    """``../shared/data`` beside the checkout (real route, split and result files; CARLA town maps)."""
-    if not SHARED_DATA.is_dir():
-        raise FileNotFoundError(f"{SHARED_DATA} is missing: tests read the real Bench2Drive files from ../shared/data")
-    return SHARED_DATA
+def b2d_data_dir() -> Path:
+    """The shipped Bench2Drive files: route XML, weather.xml, split lists, VAD's merged result."""
+    return data.bench2drive_dir()
 
 
 @pytest.fixture(scope="session")
-def b2d_data_dir(shared_data: Path) -> Path:
-    """``../shared/data/bench2drive``."""
-    return shared_data / "bench2drive"
-
-
-@pytest.fixture(scope="session")
-def carla_maps_dir(shared_data: Path) -> Path:
-    """``../shared/data/carla_maps`` (Town01/04/06/07/10HD .xodr)."""
-    return shared_data / "carla_maps"
+def carla_maps_dir() -> Path:
+    """The shipped CARLA towns (Town01/04/06/07/10HD .xodr)."""
+    return data.carla_maps_dir()

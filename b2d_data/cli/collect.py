@@ -58,14 +58,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     what.add_argument("--out", type=Path, required=False, help="corpus folder (created if needed)")
     where = what.add_mutually_exclusive_group()
-    where.add_argument("--town", metavar="PRESET", help="generated town preset (default: the one with every layout)")
+    where.add_argument(
+        "--town",
+        metavar="TOWN",
+        help="generated preset (all, urban, Town100 ...; default: the one with every layout) or a shipped CARLA town "
+        "(Town01, Town04, Town06, Town07, Town10HD)",
+    )
     where.add_argument(
         "--xodr",
         type=Path,
         metavar="FILE|DIR",
         help="an OpenDRIVE town (its stem is the town name), or with --routes a folder of <Town>.xodr",
     )
-    what.add_argument("--routes", type=Path, metavar="FILE.xml", help="run the routes of a Leaderboard route file")
+    what.add_argument(
+        "--routes",
+        type=Path,
+        metavar="FILE.xml",
+        help="run the routes of a Leaderboard route file (a bare shipped name such as bench2drive220.xml works)",
+    )
     what.add_argument(
         "--weather",
         type=int,

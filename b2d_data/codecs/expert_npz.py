@@ -1,7 +1,9 @@
 """Expert assessment vectors (format.md §2.8): ``np.savez(path, vector)``, stored at frame index − 1.
 
-Frame k's vector goes to ``f"{k - 1:05}.npz"``, so frame 0 is ``-0001.npz``. The vector is Think2Drive's
-latent feature, then its value estimate, then the discrete action index (as float).
+Frame k's vector goes to ``f"{k - 1:05}.npz"``, so frame 0 is ``-0001.npz``. The vector is a 1536-d feature, then
+a value, then the discrete action index (as float; :mod:`b2d_data.format.expert_actions`). In released clips the
+feature is Think2Drive's latent and the value its value estimate; in b2d-data clips they are the BEV raster and
+the route progress of :mod:`b2d_data.format.expert_feature`, as the clip's ``b2d_format.json`` records.
 """
 
 from __future__ import annotations

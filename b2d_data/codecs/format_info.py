@@ -35,6 +35,8 @@ class ClipFormatInfo:
     lidar: bool = True
     radar: bool = True
     expert_assessment: bool = False  # ``expert_assessment/`` present (first file ``-0001.npz``)
+    #: Layout of the vectors' feature part (b2d_data.format.expert_feature.layout_record); None: undescribed.
+    expert_feature: dict[str, object] | None = None
     written_at: str = ""  # ISO 8601 UTC time of close()
     extra: dict[str, object] = field(default_factory=dict)  # free-form notes (e.g. simulator, seed)
 

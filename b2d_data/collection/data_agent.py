@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from b2d_data.collection.annotations import PlannerFields, build_annotation
+from b2d_data.collection.expert_assessment import BevRasterizer, assessment_vector
 from b2d_data.collection.route_planners import CommandPlanners
 from b2d_data.format.record import FrameRecord
 from b2d_data.format.road_option import RoadOption
@@ -22,9 +23,19 @@ _ROUTE_LOOKAHEAD = 50
 
 
 class DataAgent:
-    """Builds the per-frame records of one route; keeps the route planners' state between frames."""
+    """Builds the per-frame records of one route; keeps the route planners' state between frames.
 
-    def __init__(self, world_map: Map, route: Sequence[tuple[Waypoint, RoadOption]], config: RigConfig) -> None:
+    With ``expert_assessment`` (the default) every record carries the expert vector of
+    :mod:`b2d_data.format.expert_feature` (BEV raster, route progress, nearest Think2Drive action).
+    """
+
+    def __init__(
+        self,
+        world_map: Map,
+        route: Sequence[tuple[Waypoint, RoadOption]],
+        config: RigConfig,
+        expert_assessment: bool = True,
+    ) -> None:
         if not route:
             raise ValueError("the data agent needs a non-empty dense route")
         self.map = world_map
@@ -34,6 +45,7 @@ class DataAgent:
         self.planners = CommandPlanners.from_dense_route(xy, commands)
         self.route_xy = np.asarray(xy, dtype=np.float64)
         self._route_index = 0
+        self._bev = BevRasterizer(world_map) if expert_assessment else None
 
     def _advance_route_index(self, x: float, y: float) -> int:
         """Nearest route point among the next 40 m (never moving backwards)."""
@@ -73,10 +85,15 @@ class DataAgent:
             only_ap_brake,
             route_ahead,
         )
+        expert = None
+        if self._bev is not None:
+            progress = start / max(len(self.route_xy) - 1, 1)
+            expert = assessment_vector(self._bev, snapshot, ego, route_ahead, progress, anno)
         return FrameRecord(
             index=index,
             anno=anno,
             cameras=dict(sensors.cameras),
             lidar=sensors.lidar if self.config.lidar else None,
             radar=dict(sensors.radar) if self.config.radar else None,
+            expert_assessment=expert,
         )

@@ -416,6 +416,7 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
         on_start = None
         if config.sensors:
             from b2d_data.collection.data_agent import DataAgent
+            from b2d_data.format.expert_feature import layout_record
             from b2d_data.writers import ClipWriter
 
             rig = config.rig()
@@ -426,6 +427,7 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
                 executor=encoder_pool(config.resolved_encode_workers()),
                 extra={"route_id": str(route.id), "seed": seed, "scenario": result.scenario,
                        "collector": "b2d-collect"},
+                expert_feature=layout_record(),
             )  # fmt: skip
             sink = _FrameSink(sim, agent, expert, writer, config.keep_failed)
 

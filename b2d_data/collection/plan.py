@@ -30,6 +30,7 @@ from b2d_data.collection.towns import (
     default_preset,
     load_map,
     preset_town_name,
+    shipped_town,
     xodr_in_folder,
     xodr_source,
 )
@@ -154,6 +155,8 @@ def _generated_plan(config: CollectConfig) -> CollectionPlan:
     scenarios = list(dict.fromkeys(_check_generated_scenario(s) for s in config.scenarios))
     if config.xodr is not None:
         town = xodr_source(config.xodr)
+    elif config.town is not None and (shipped := shipped_town(config.town)) is not None:
+        town = shipped
     else:
         town = TownSource(preset=config.town or default_preset())
     town = _materialise(town, config.out)
@@ -214,8 +217,10 @@ def _materialise(town: TownSource, out: Path) -> TownSource:
 
 
 def _read_route_file(path: Path) -> list[Route]:
+    from b2d_data.data import shipped_or_given
     from b2d_data.scenarios.route_xml import read_routes
 
+    path = shipped_or_given(path)  # a bare name such as bench2drive220.xml: the route file the package ships
     try:
         return read_routes(path)
     except B2DFormatError as exc:
@@ -274,7 +279,7 @@ def _file_plan(config: CollectConfig) -> CollectionPlan:
 
 
 def _town_for(config: CollectConfig, town: str) -> TownSource | None:
-    """The source of a route file's town: the --xodr file or folder, else a generated preset of that name."""
+    """A route file's town: the --xodr file or folder, else a generated preset or a shipped CARLA town of that name."""
     try:
         if config.xodr is not None:
             if config.xodr.is_dir():
@@ -286,7 +291,7 @@ def _town_for(config: CollectConfig, town: str) -> TownSource | None:
         presets = {p.town: p.name for p in towngen.TOWN_PRESETS.values()}
         if config.town is not None:
             return TownSource(preset=config.town) if presets.get(town) == config.town else None
-        return TownSource(preset=presets[town]) if town in presets else None
+        return TownSource(preset=presets[town]) if town in presets else shipped_town(town)
     except TownError as exc:
         raise CollectError(str(exc)) from None
 
@@ -301,7 +306,7 @@ def validate_config(config: CollectConfig) -> None:
         raise CollectError("give either --town PRESET or --xodr FILE, not both")
     _check_weathers(config.weathers)
     try:
-        if config.town is not None:
+        if config.town is not None and shipped_town(config.town) is None:
             preset_town_name(config.town)
         if config.xodr is not None and not config.xodr.is_dir():
             xodr_source(config.xodr)

@@ -83,7 +83,10 @@ def preset_town_name(preset: str) -> str:
     try:
         return towngen.get_preset(preset).town
     except towngen.UnknownPresetError as exc:
-        raise TownError(str(exc)) from None
+        from b2d_data.data import carla_maps_dir
+
+        shipped = ", ".join(sorted(p.stem for p in carla_maps_dir().glob("*.xodr")))
+        raise TownError(f"{exc}; shipped CARLA towns: {shipped}") from None
 
 
 def default_preset() -> str:
@@ -104,6 +107,13 @@ def xodr_source(path: str | os.PathLike[str]) -> TownSource:
             "(Town<digits> or Town<digits>HD); rename the file, e.g. to Town200.xodr"
         )
     return TownSource(xodr=p)
+
+
+def shipped_town(town: str) -> TownSource | None:
+    """A CARLA town shipped with the package (Town01, Town04, Town06, Town07, Town10HD) as a source, else None."""
+    from b2d_data.data import carla_maps_dir
+
+    return xodr_in_folder(carla_maps_dir(), town)
 
 
 def xodr_in_folder(folder: str | os.PathLike[str], town: str) -> TownSource | None:

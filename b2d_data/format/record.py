@@ -30,7 +30,8 @@ class FrameRecord:
     by camera folder name (``front`` … ``back_right``, ``top_down``). ``lidar`` is (N, 3) float in the
     left-handed CARLA **ego** frame, as stored in the LAZ files. ``radar`` maps the h5 dataset names
     (``radar_front`` …) to (N, 4) arrays [depth m, altitude rad, azimuth rad, velocity m/s].
-    ``expert_assessment`` is the optional expert vector stored at index ``frame − 1``.
+    ``expert_assessment`` is the optional expert vector stored at index ``frame − 1`` (feature ‖ value ‖ action
+    index; the data agent writes the layout of :mod:`b2d_data.format.expert_feature`).
     """
 
     index: int

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from torch.utils.data._utils.collate import default_collate_fn_map
 
 #: Fields whose first dimension varies from frame to frame.
 VARIABLE_KEYS: frozenset[str] = frozenset({
@@ -63,6 +64,52 @@ class Batch(dict):
         return (_rebuild_batch, ({k: _pack(v) for k, v in self.items()},))
 
 
+class Ragged(np.ndarray):
+    """A sample field whose first dimension varies between frames: a plain ndarray view with its own type.
+
+    Its type tells torch's ``default_collate`` to list such fields instead of stacking them, so that a plain
+    ``DataLoader(dataset, batch_size=4)`` works; everything numpy does with it is unchanged.
+    """
+
+
+class RaggedList(list):
+    """A per-sample list of arrays of varying count and size (``map_polylines``), listed per sample when batched."""
+
+
+class RawAnno(dict):
+    """The raw annotation dict of a sample (``keep_anno``), listed per sample when batched."""
+
+
+def _collate_ragged(batch: Sequence[Ragged], *, collate_fn_map: Any = None) -> list[torch.Tensor]:
+    return [torch.from_numpy(np.ascontiguousarray(v.view(np.ndarray))) for v in batch]
+
+
+def _collate_ragged_list(batch: Sequence[RaggedList], *, collate_fn_map: Any = None) -> list[list[torch.Tensor]]:
+    return [[torch.from_numpy(np.ascontiguousarray(p)) for p in v] for v in batch]
+
+
+def _collate_raw(batch: Sequence[RawAnno], *, collate_fn_map: Any = None) -> list[dict]:
+    return [dict(v) for v in batch]
+
+
+# torch's documented extension point for default_collate (see torch.utils.data.default_collate): these types are
+# ours alone, so registering them changes nothing for anyone else's data.
+default_collate_fn_map.update({Ragged: _collate_ragged, RaggedList: _collate_ragged_list, RawAnno: _collate_raw})
+
+
+def mark_variable_fields(sample: dict[str, Any]) -> dict[str, Any]:
+    """Tag a sample's variable-size fields (in place) so that torch's default collate lists them; returns it."""
+    for key in VARIABLE_KEYS.intersection(sample):
+        value = sample[key]
+        if key == "map_polylines":
+            sample[key] = RaggedList(value)
+        elif isinstance(value, np.ndarray):
+            sample[key] = value.view(Ragged)
+    if isinstance(sample.get("anno"), dict):
+        sample["anno"] = RawAnno(sample["anno"])
+    return sample
+
+
 def _tensor(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return torch.from_numpy(np.ascontiguousarray(value))
@@ -100,14 +147,14 @@ def collate(batch: Sequence[dict[str, Any] | None], pad: bool = False) -> Batch:
     for key in samples[0]:
         values = [s[key] for s in samples]
         if key in LIST_KEYS:
-            out[key] = values
+            out[key] = [dict(v) if isinstance(v, RawAnno) else v for v in values]
         elif key == "map_polylines":
-            out[key] = [[torch.from_numpy(p) for p in v] for v in values]
+            out[key] = [[torch.from_numpy(np.ascontiguousarray(p)) for p in v] for v in values]
         elif key in VARIABLE_KEYS:
             if pad:
-                out[key], out[f"{key}_mask"] = _pad([np.asarray(v) for v in values])
+                out[key], out[f"{key}_mask"] = _pad([np.asarray(v).view(np.ndarray) for v in values])
             else:
-                out[key] = [_tensor(np.asarray(v)) for v in values]
+                out[key] = [_tensor(np.asarray(v).view(np.ndarray)) for v in values]
         elif isinstance(values[0], np.ndarray) and all(
             isinstance(v, np.ndarray) and v.shape == values[0].shape for v in values
         ):

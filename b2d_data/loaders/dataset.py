@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import logging
 import os
@@ -13,20 +14,25 @@ from typing import Any
 
 import cv2
 import numpy as np
-from torch.utils.data import Dataset
+from torch.utils.data import DataLoader, Dataset
 
 from b2d_data import coords
 from b2d_data.codecs import layout
 from b2d_data.codecs.anno_json import read_anno
 from b2d_data.codecs.depth import read_depth_npz, read_depth_png
 from b2d_data.codecs.expert_npz import read_expert, split_expert
+from b2d_data.codecs.format_info import read_format_info
 from b2d_data.codecs.jpeg import read_jpeg
 from b2d_data.codecs.labels_png import read_instance_png, read_semantic_png
 from b2d_data.codecs.laz import read_laz
 from b2d_data.codecs.radar_h5 import RADAR_DATASETS, read_radar
+from b2d_data.format import expert_feature
 from b2d_data.format.errors import B2DFormatError
+from b2d_data.format.expert_actions import action_control
+from b2d_data.format.version import FORMAT_FILE
 from b2d_data.format.names import canonical_clip_prefix
 from b2d_data.format.rig import RADARS_V0, camera
+from b2d_data.loaders.collate import collate, mark_variable_fields
 from b2d_data.loaders.hdmap import find_hdmap, load_hdmap_cached
 from b2d_data.loaders.index import CorpusIndex, open_index, presence_column
 from b2d_data.loaders.sample import (
@@ -95,8 +101,12 @@ class ClipDataset(Dataset):
     - ``future_waypoints`` / ``past_waypoints`` (K, 2), ``future_yaw`` / ``past_yaw`` (K,), ``future_valid`` /
       ``past_valid`` (K,) — ego poses every ``waypoint_stride`` frames, in the current ego frame
     - optional: ``depth`` (C, H, W) float32 m, ``semantic`` (C, H, W) uint8 tags, ``instance`` (C, H, W) uint16
-      ids, ``expert_feature`` / ``expert_value`` / ``expert_action``, ``map_polylines`` (list of (n, 3)) with
-      ``map_types`` (index into MAP_TYPES), ``anno`` (raw dict)
+      ids, ``map_polylines`` (list of (n, 3)) with ``map_types`` (index into MAP_TYPES), ``anno`` (raw dict)
+    - with ``expert=True``: ``expert_feature`` (1536,) float32 (Think2Drive's latent in released clips, the BEV
+      raster of :mod:`b2d_data.format.expert_feature` in ours), ``expert_value``, ``expert_action`` (0–38) and
+      ``expert_control`` [throttle, steer, brake, reverse] that action decodes to (format.md §2.8 table). With
+      ``expert_bev=True`` (implies ``expert``) ``expert_feature`` is the (6, 16, 16) raster instead; a clip whose
+      ``b2d_format.json`` does not record that layout (any released Bench2Drive clip) raises ``B2DFormatError``.
 
     ``index``: ``auto`` reads ``<root>/.b2d_index`` (building it once when absent), ``update`` rescans new or
     changed clips first, ``memory`` never writes, or pass a :class:`CorpusIndex`. HD maps are looked up in
@@ -180,6 +190,7 @@ class ClipDataset(Dataset):
         self._rows = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64)
         self._clip_ids = np.array(sorted(keep), dtype=np.int32)
         self._cv_pid = -1
+        self._expert_bev: dict[int, bool] = {}  # clip → its b2d_format.json records the BEV raster layout
 
     # ------------------------------------------------------------------------------------------ selection
 
@@ -241,6 +252,26 @@ class ClipDataset(Dataset):
     def __len__(self) -> int:
         return len(self._rows)
 
+    def loader(
+        self, batch_size: int = 1, *, num_workers: int = 0, shuffle: bool = False, pad: bool = False, **kwargs: Any
+    ) -> DataLoader:
+        """A DataLoader with this dataset's :func:`collate` (drops skipped frames; ``pad=True`` pads ragged fields).
+
+        A plain ``DataLoader(dataset, batch_size=...)`` works too (variable-size fields come back as lists); this
+        one also drops frames skipped with ``on_error="skip"``, pads on request, sends small tensors from the
+        workers by value and gives each worker one OpenCV / torch thread. ``kwargs`` go to ``DataLoader``.
+        """
+        kwargs.setdefault("worker_init_fn", worker_init_fn if num_workers else None)
+        kwargs.setdefault("persistent_workers", num_workers > 0)
+        return DataLoader(
+            self,
+            batch_size=batch_size,
+            shuffle=shuffle,
+            num_workers=num_workers,
+            collate_fn=functools.partial(collate, pad=pad),
+            **kwargs,
+        )
+
     @property
     def clip_names(self) -> list[str]:
         """Names of the clips this dataset draws frames from."""
@@ -258,7 +289,7 @@ class ClipDataset(Dataset):
             self._cv_pid = os.getpid()
         row = int(self._rows[index])
         try:
-            return self._load(index, row)
+            return mark_variable_fields(self._load(index, row))
         except _EXPECTED_ERRORS as exc:
             clip = int(self._frame_clip[row])
             err = (
@@ -317,18 +348,42 @@ class ClipDataset(Dataset):
         if opts.boxes:
             neighbour, dt = self._neighbour(anno, clip_dir, row, start, length)
             sample.update(box_fields(anno, world2ego, opts, neighbour, dt))
-        if opts.expert:
-            feature, value, action = split_expert(read_expert(layout.expert_path(clip_dir, frame)))
-            sample.update(
-                expert_feature=feature.astype(np.float32),
-                expert_value=np.float32(value),
-                expert_action=np.int64(action),
-            )
+        if opts.expert or opts.expert_bev:
+            sample.update(self._load_expert(clip, clip_dir, frame))
         if opts.map_radius is not None:
             self._load_map(sample, world2ego, sample["town"])
         if opts.keep_anno:
             sample["anno"] = anno
         return sample
+
+    def _load_expert(self, clip: int, clip_dir: Path, frame: int) -> dict[str, Any]:
+        path = layout.expert_path(clip_dir, frame)
+        feature, value, action = split_expert(read_expert(path))
+        try:
+            control = action_control(action).as_array()
+        except ValueError as exc:
+            raise B2DFormatError(path, str(exc)) from exc
+        feature = feature.astype(np.float32)
+        if self.options.expert_bev:
+            if clip not in self._expert_bev:
+                info = read_format_info(clip_dir)
+                self._expert_bev[clip] = info is not None and expert_feature.is_bev_record(info.expert_feature)
+            if not self._expert_bev[clip]:
+                raise B2DFormatError(
+                    clip_dir / FORMAT_FILE,
+                    f"expert_bev=True but the clip does not record the {expert_feature.FEATURE_NAME} "
+                    f"v{expert_feature.FEATURE_VERSION} layout (released Bench2Drive clips hold Think2Drive's latent)",
+                )
+            try:
+                feature = expert_feature.unflatten(feature)
+            except ValueError as exc:
+                raise B2DFormatError(path, str(exc)) from exc
+        return {
+            "expert_feature": feature,
+            "expert_value": np.float32(value),
+            "expert_action": np.int64(action),
+            "expert_control": control,
+        }
 
     def _clip_track(self, clip_dir: Path, start: int, length: int, pos: int) -> np.ndarray:
         track = self._track[start : start + length]

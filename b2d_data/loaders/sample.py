@@ -36,6 +36,7 @@ class SampleOptions:
     semantic: bool = False
     instance: bool = False
     expert: bool = False
+    expert_bev: bool = False  # reshape the expert feature to (6, 16, 16); only for clips whose record says so
     map_radius: float | None = None  # metres; None = no map elements
     future_steps: int = 6
     past_steps: int = 4

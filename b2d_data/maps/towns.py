@@ -6,6 +6,7 @@ import os
 import tempfile
 from pathlib import Path
 
+from b2d_data.data import carla_maps_dir
 from b2d_data.maps.map import Map, load_opendrive
 
 #: Environment variable naming a folder of ``<Town>.xodr`` files (e.g. CARLA's OpenDRIVE maps).
@@ -17,10 +18,9 @@ class UnknownTownError(ValueError):
 
 
 def map_folders() -> list[Path]:
-    """Folders searched for ``<Town>.xodr``: ``$B2D_CARLA_MAPS``, then ``../shared/data/carla_maps`` of a checkout."""
+    """Folders searched for ``<Town>.xodr``: ``$B2D_CARLA_MAPS`` first, then the CARLA towns shipped with the package."""
     folders = [Path(os.environ[CARLA_MAPS_ENV])] if os.environ.get(CARLA_MAPS_ENV) else []
-    # A development checkout keeps the real CARLA towns beside it (not shipped in the package).
-    folders.append(Path(__file__).resolve().parents[3] / "shared" / "data" / "carla_maps")
+    folders.append(carla_maps_dir())
     return folders
 
 
@@ -46,7 +46,8 @@ def resolve_town(town: Map | str | os.PathLike[str]) -> Map:
         if (folder / f"{name}.xodr").is_file():
             return load_opendrive(folder / f"{name}.xodr")
     known = ", ".join(sorted(presets))
+    shipped = ", ".join(sorted(p.stem for p in carla_maps_dir().glob("*.xodr")))
     raise UnknownTownError(
-        f"unknown town {name!r}: give an .xodr path, a generated preset ({known}), or a town whose .xodr is in "
-        f"${CARLA_MAPS_ENV}"
+        f"unknown town {name!r}: give an .xodr path, a generated preset ({known}), a shipped CARLA town ({shipped}), "
+        f"or a town whose .xodr is in ${CARLA_MAPS_ENV}"
     )

@@ -128,6 +128,7 @@ class ClipWriter:
     may reuse its buffers. Errors from the pool are raised by the next ``write`` or by ``close``, name the frame,
     and abort the clip. The pool starts its processes with ``forkserver`` (``spawn`` off Linux), so a script
     using ``workers > 0`` needs the usual ``if __name__ == "__main__":`` guard.
+    ``expert_feature`` (JSON-able) describes the expert vectors' feature in ``b2d_format.json`` when the clip has them.
     """
 
     def __init__(
@@ -144,6 +145,7 @@ class ClipWriter:
         executor: Executor | None = None,
         depth_npz: DepthOptions | None = None,
         extra: Mapping[str, object] | None = None,
+        expert_feature: Mapping[str, object] | None = None,
     ) -> None:
         self.name = name if isinstance(name, ClipName) else ClipName.parse(name)
         self.root = Path(root)
@@ -152,10 +154,13 @@ class ClipWriter:
         self.overwrite = overwrite
         self.final_dir = self.root / str(self.name)
         self._extra = dict(extra or {})
+        self._expert_feature = dict(expert_feature) if expert_feature is not None else None
         try:
-            json.dumps(self._extra)
+            json.dumps([self._extra, self._expert_feature])
         except (TypeError, ValueError) as exc:
-            raise TypeError(f"{self.name}: extra must be JSON-serialisable for {FORMAT_FILE}: {exc}") from exc
+            raise TypeError(
+                f"{self.name}: extra and expert_feature must be JSON-serialisable for {FORMAT_FILE}: {exc}"
+            ) from exc
         # Float depth npz only where the format version has it; ``depth_npz`` only says how to store it.
         self._float_depth = (depth_npz or DepthOptions()) if self.format_version.float_depth else None
         self._hdmap = Path(hdmap) if hdmap is not None else None
@@ -371,6 +376,7 @@ class ClipWriter:
             lidar=self._layout.lidar,
             radar=self._layout.radar,
             expert_assessment=self._layout.expert,
+            expert_feature=self._expert_feature if self._layout.expert else None,
             written_at=datetime.now(timezone.utc).isoformat(timespec="seconds"),
             extra=self._extra,
         )

@@ -15,7 +15,9 @@ from b2d_data.format.version import FORMAT_FILE, FormatVersion
 
 def test_format_info_round_trip(tmp_path: Path) -> None:
     info = ClipFormatInfo(FormatVersion.V004, "0.1.0", "Accident_Town03_Route156_Weather0", 12,
-                          cameras={"front": CameraInfo(64, 36, True)}, float_depth=True, extra={"seed": 3})  # fmt: skip
+                          cameras={"front": CameraInfo(64, 36, True)}, float_depth=True, extra={"seed": 3},
+                          expert_assessment=True,
+                          expert_feature={"name": "b2d-bev-raster", "shape": [6, 16, 16]})  # fmt: skip
     path = write_format_info(tmp_path, info)
     assert path.name == FORMAT_FILE
     assert json.loads(path.read_text())["format_version"] == "bench2drive-v0.0.4"

@@ -11,10 +11,8 @@ from b2d_data.collection.annotations import PlannerFields, build_annotation, cou
 from b2d_data.format.anno_schema import check_anno
 from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
 from b2d_data.format.weather import PRESETS
-from b2d_data.maps import load_opendrive
 from b2d_data.sim.api import (
     ActorKind,
-    ActorState,
     GnssReading,
     ImuReading,
     RigConfig,
@@ -23,25 +21,13 @@ from b2d_data.sim.api import (
     VehicleControl,
 )
 
-
-@pytest.fixture(scope="module")
-def town01(carla_maps_dir):
-    return load_opendrive(carla_maps_dir / "Town01.xodr")
-
-
-def _actor(actor_id, type_id, kind, transform, extent, tags, speed=0.0, **kw):
-    fwd = transform.get_forward_vector()
-    return ActorState(
-        id=actor_id, type_id=type_id, kind=kind, transform=transform,
-        velocity=Location(fwd.x * speed, fwd.y * speed, 0.0), angular_velocity=Location(), acceleration=Location(),
-        bounding_box=BoundingBox(Location(0.0, 0.0, extent[2]), Location(*extent)), semantic_tags=tags, **kw,
-    )  # fmt: skip
+from .conftest import make_actor
 
 
 def test_count_points_uses_the_actor_origin_box():
-    ego = _actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, Transform(), (2.4, 1.0, 0.75), (14,))
+    ego = make_actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, Transform(), (2.4, 1.0, 0.75), (14,))
     # Other car 10 m ahead, turned 90°: its length (2 m half) runs along the ego's y axis.
-    other = _actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, Transform(Location(10, 0, 0), Rotation(yaw=90)),
+    other = make_actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, Transform(Location(10, 0, 0), Rotation(yaw=90)),
                    (2.0, 1.0, 0.8), (14,))
     pts = np.array([
         [10.0, 1.9, 0.5],   # inside: 1.9 < 2.0 along its length
@@ -57,18 +43,18 @@ def test_count_points_uses_the_actor_origin_box():
 def test_annotation_follows_the_schema_and_values(town01):
     wp = town01.generate_waypoints(20.0)[5]
     ego_tf = Transform(wp.transform.location, wp.transform.rotation)
-    ego = _actor(7, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.451, 1.064, 0.755), (14,), speed=5.0,
+    ego = make_actor(7, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.451, 1.064, 0.755), (14,), speed=5.0,
                  role_name="hero", base_type="car", control=VehicleControl(throttle=0.3, steer=-0.1),
                  attributes={"color": "10,20,30"})
     fwd = ego_tf.get_forward_vector()
     ahead = Transform(Location(ego_tf.location.x + 20 * fwd.x, ego_tf.location.y + 20 * fwd.y, ego_tf.location.z),
                       ego_tf.rotation)
-    car = _actor(8, "vehicle.audi.a2", ActorKind.VEHICLE, ahead, (1.85, 0.9, 0.77), (14,), speed=3.0,
+    car = make_actor(8, "vehicle.audi.a2", ActorKind.VEHICLE, ahead, (1.85, 0.9, 0.77), (14,), speed=3.0,
                  base_type="car", control=VehicleControl(brake=1.0))
-    walker = _actor(9, "walker.pedestrian.0001", ActorKind.WALKER,
+    walker = make_actor(9, "walker.pedestrian.0001", ActorKind.WALKER,
                     Transform(Location(ego_tf.location.x + 5 * fwd.x, ego_tf.location.y + 5 * fwd.y, 0.0)),
                     (0.25, 0.25, 0.9), (12,), speed=1.2, attributes={"gender": "female", "age": "adult"})
-    far_away = _actor(10, "vehicle.audi.a2", ActorKind.VEHICLE,
+    far_away = make_actor(10, "vehicle.audi.a2", ActorKind.VEHICLE,
                       Transform(Location(ego_tf.location.x + 500, ego_tf.location.y, 0.0)), (1.85, 0.9, 0.77), (14,))
     snapshot = Snapshot(frame=3, timestamp=0.15, actors={a.id: a for a in (ego, car, walker, far_away)},
                         traffic_lights={}, traffic_signs={}, collisions=(), weather=PRESETS[3])

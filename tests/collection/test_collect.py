@@ -180,6 +180,93 @@ def test_annotations_agree_with_the_simulator(collection, short_routes):
     assert seen_scenario_actor, "the accident's actors never showed up within 100 m"
 
 
+def _ego_xy(anno: dict, world_xyz: list[float]) -> tuple[float, float]:
+    """A world point in the annotation's ego frame (x forward, y right)."""
+    p = np.asarray(anno["bounding_boxes"][0]["world2ego"]) @ np.array([*world_xyz, 1.0])
+    return float(p[0]), float(p[1])
+
+
+def test_expert_assessment_decodes_to_the_expert_and_the_scene(collection):
+    """Every frame has its npz (format.md §2.8), whose action and raster agree with the frame's annotation."""
+    import zipfile
+
+    from b2d_data.codecs.format_info import read_format_info
+    from b2d_data.format import expert_feature as ef
+    from b2d_data.format.expert_actions import ACTIONS, action_control
+
+    near_straight = vehicles_checked = 0
+    for clip in _clips(collection):
+        annos = [read_anno(p) for p in sorted((clip / "anno").glob("*.json.gz"))]
+        names = sorted(p.name for p in (clip / "expert_assessment").iterdir())
+        assert names == sorted(f"{k - 1:05d}.npz" for k in range(len(annos)))  # -0001.npz first
+        info = read_format_info(clip)
+        assert info is not None and info.expert_assessment and info.expert_feature == ef.layout_record()
+        progress = []
+        for k, anno in enumerate(annos):
+            path = clip / "expert_assessment" / f"{k - 1:05d}.npz"
+            with zipfile.ZipFile(path) as z:  # np.savez(path, vector): one unnamed, uncompressed array
+                assert [(e.filename, e.compress_type) for e in z.infolist()] == [("arr_0.npy", zipfile.ZIP_STORED)]
+            vec = np.load(path)["arr_0"]
+            assert vec.shape == (1538,)
+            progress.append(float(vec[-2]))
+            # Action → controls within the table's resolution of the annotation's control (format/expert_actions.py:
+            # 0.21 while |steer| ≤ 0.1; 0.59 anywhere else, the farthest forward control (1, ±1) being √(0.3² + 0.5²)
+            # from (0.7, ±0.5)); a brake decodes to the full-brake action.
+            action = action_control(vec[-1])
+            throttle, steer, brake = anno["throttle"], anno["steer"], anno["brake"]
+            if brake >= 0.5:
+                assert action == ACTIONS[0]
+            else:
+                gap = math.hypot(action.throttle - throttle, action.steer - steer)
+                assert action.brake == 0.0 and not action.reverse
+                if abs(steer) <= 0.1:
+                    near_straight += 1
+                    assert gap <= 0.21, (clip.name, k, anno["throttle"], anno["steer"], action)
+                else:
+                    assert gap <= 0.59
+            # Feature → the raster of what the simulator held (the annotation is the same snapshot).
+            raster = ef.unflatten(vec[:-2])
+            assert np.allclose(raster[ef.SPEED], min(max(anno["speed"] / 25.0, 0.0), 1.0), atol=1e-6)
+            assert raster[ef.DRIVABLE, 7:9, 7:9].any() and raster[ef.ROUTE, 7:9, 7:9].any()  # the ego's own cells
+            for channel, cls in ((ef.VEHICLES, "vehicle"), (ef.WALKERS, "walker")):
+                boxes = [b for b in anno["bounding_boxes"][1:] if b["class"] == cls]
+                centres = [_ego_xy(anno, b["center"]) for b in boxes]
+                for box, (x, y) in zip(boxes, centres):
+                    cell = ef.cell_of(x, y)
+                    on_edge = min(abs(x / 2.0 - round(x / 2.0)), abs(y / 2.0 - round(y / 2.0))) < 0.03
+                    if cell is not None and not on_edge:  # the cell holding a box centre overlaps the box
+                        assert raster[channel][cell] == 1.0, (clip.name, k, box["id"], cell)
+                        vehicles_checked += channel == ef.VEHICLES
+                # Conversely, a lit cell lies within reach of a box: centre distance ≤ cell and box half diagonals.
+                for r, c in zip(*np.nonzero(raster[channel])):
+                    cx, cy = 16.0 - 2.0 * r - 1.0, -16.0 + 2.0 * c + 1.0
+                    assert any(
+                        math.hypot(cx - x, cy - y) <= math.sqrt(2.0) + math.hypot(*b["extent"][:2]) + 0.05
+                        for b, (x, y) in zip(boxes, centres)
+                    ), (clip.name, k, cls, (r, c))
+            stops = [b for b in anno["bounding_boxes"] if b.get("state") in (0, 1) or "stop" in b.get("type_id", "")]
+            assert stops or not raster[ef.STOP].any()
+        assert progress == sorted(progress) and 0.0 <= progress[0] <= 0.1 and progress[-1] <= 1.0
+    assert near_straight > 0 and vehicles_checked > 0  # the tight bound and the vehicle cells were exercised
+
+
+def test_clip_dataset_returns_the_expert_assessment(collection):
+    from b2d_data import ClipDataset
+    from b2d_data.format import expert_feature as ef
+    from b2d_data.format.expert_actions import action_control
+
+    clip = _clips(collection)[0]
+    flat = ClipDataset(collection, index="memory", clips=[clip.name], expert=True, cameras=(), lidar=False)
+    bev = ClipDataset(collection, index="memory", clips=[clip.name], expert_bev=True, cameras=(), lidar=False)
+    for k in (0, len(flat) - 1):
+        vec = np.load(clip / "expert_assessment" / f"{k - 1:05d}.npz")["arr_0"]
+        s, b = flat[k], bev[k]
+        assert s["frame"] == k and np.array_equal(s["expert_feature"], vec[:-2])
+        assert s["expert_value"] == vec[-2] and s["expert_action"] == int(vec[-1])
+        assert np.array_equal(s["expert_control"], action_control(vec[-1]).as_array())
+        assert b["expert_feature"].shape == (6, 16, 16) and np.array_equal(b["expert_feature"], ef.unflatten(vec[:-2]))
+
+
 def _descendants(pid: int) -> set[int]:
     """Every live process below ``pid`` (from /proc)."""
     children: dict[int, list[int]] = {}

@@ -11,6 +11,7 @@ import pytest
 from b2d_data import ClipDataset
 from b2d_data.codecs import layout
 from b2d_data.codecs.anno_json import read_anno, write_anno
+from b2d_data.format.errors import B2DFormatError
 from b2d_data.format.version import FORMAT_FILE
 from b2d_data.loaders import CorpusIndex
 
@@ -52,6 +53,8 @@ def test_released_clip_loads_with_its_quirks(released: Path) -> None:
     # Frame 0 reads -0001.npz (value 0.5 + 0, action 0); frame 3 reads 00002.npz (value 3.5, action 3).
     assert float(s0["expert_value"]) == pytest.approx(0.5) and int(s0["expert_action"]) == 0
     assert float(s3["expert_value"]) == pytest.approx(3.5) and int(s3["expert_action"]) == 3
+    # Action 3 decodes through Think2Drive's table to throttle 0.7, steer −0.2, no brake, forward.
+    assert s3["expert_control"].tolist() == pytest.approx([0.7, -0.2, 0.0, 0.0])
     # The exact pose is unaffected by the NaN compass: waypoints still run straight ahead.
     assert s2["future_waypoints"][0] == pytest.approx([2.5, 0.0], abs=1e-4)
 
@@ -65,3 +68,10 @@ def test_index_records_released_layout(released: Path) -> None:
     assert rows[str(CLIP_B)]["format_version"] == "bench2drive-v0.0.4"
     frames = index.frames.slice(row["frame_start"], row["n_frames"]).to_pydict()
     assert math.isnan(frames["theta"][2]) and frames["speed"][3] == 0.0
+
+
+def test_released_expert_feature_is_not_reshaped(released: Path) -> None:
+    # A released clip's feature is Think2Drive's latent: the BEV reshape must refuse it, naming the missing record.
+    ds = ClipDataset(released, clips=[TRUNCATED], expert_bev=True, cameras=(), lidar=False)
+    with pytest.raises(B2DFormatError, match=FORMAT_FILE):
+        ds[0]

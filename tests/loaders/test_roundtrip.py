@@ -191,3 +191,28 @@ def test_dataloader_with_workers(corpus: Path) -> None:
     assert seen == len(ds) == 18
     padded = functools.partial(collate, pad=True)([ds[0], ds[1]])
     assert padded["boxes"].shape == (2, 6, 7) and padded["boxes_mask"].all()
+
+
+def test_plain_dataloader_with_default_collate(corpus: Path) -> None:
+    # Issue 10: torch's default collate used to stack the variable-size LiDAR and boxes and crash in the workers
+    # ("Trying to resize storage that is not resizable"); now they come back as per-sample lists.
+    ds = ClipDataset(corpus, cameras=("front",), keep_anno=True)
+    singles = [ds[i] for i in range(4)]
+    batch = next(iter(DataLoader(ds, batch_size=4, num_workers=2)))
+    assert batch["images"].shape == (4, 1, 36, 64, 3)
+    assert [t.shape[0] for t in batch["lidar"]] == [len(s["lidar"]) for s in singles]
+    assert torch.equal(batch["boxes"][2], torch.from_numpy(np.asarray(singles[2]["boxes"])))
+    assert batch["frame"].tolist() == [s["frame"] for s in singles]
+    assert [a["bounding_boxes"][0]["id"] for a in batch["anno"]] == [s["anno"]["bounding_boxes"][0]["id"] for s in singles]
+    # Samples are still plain numpy to anyone indexing the dataset.
+    assert isinstance(singles[0]["lidar"], np.ndarray) and singles[0]["lidar"].shape[1] == 3
+
+
+def test_loader_helper_pads_ragged_fields(corpus: Path) -> None:
+    ds = ClipDataset(corpus, clips=[str(CLIP_A)], cameras=(), lidar=False)
+    batches = list(ds.loader(batch_size=5, num_workers=0, pad=True))
+    assert [b["batch_size"] for b in batches] == [5, 5, 2]  # clip A has 12 frames
+    first = batches[0]
+    n = [len(ds[i]["boxes"]) for i in range(5)]
+    assert first["boxes"].shape == (5, max(n), 7)
+    assert first["boxes_mask"].sum(dim=1).tolist() == n

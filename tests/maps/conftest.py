@@ -184,5 +184,5 @@ class _TownCache:
 
 @pytest.fixture(scope="session")
 def carla_towns(carla_maps_dir: Path) -> _TownCache:
-    """Lazily loaded CARLA towns of ``shared/data/carla_maps`` (each parsed once per session)."""
+    """Lazily loaded shipped CARLA towns (each parsed once per session)."""
     return _TownCache(carla_maps_dir)

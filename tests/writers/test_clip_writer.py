@@ -275,3 +275,15 @@ def test_an_unreaped_dead_writer_counts_as_dead():
         assert _pid_alive(os.getpid())
     finally:
         os.waitpid(pid, 0)
+
+
+def test_expert_feature_is_recorded_only_with_expert_files(tmp_path: Path, record_factory: RecordFactory) -> None:
+    record = {"name": "b2d-bev-raster", "version": 1, "shape": [6, 16, 16]}
+    with_expert = write_clip(tmp_path / "a", [record_factory(0)], expert_feature=record)
+    info = read_format_info(with_expert)
+    assert info is not None and info.expert_assessment and info.expert_feature == record
+    without = write_clip(tmp_path / "b", [record_factory(0, expert=False)], expert_feature=record)
+    info = read_format_info(without)
+    assert info is not None and not info.expert_assessment and info.expert_feature is None
+    with pytest.raises(TypeError, match="JSON-serialisable"):
+        ClipWriter(tmp_path / "c", CLIP, expert_feature={"shape": np.zeros(3)})

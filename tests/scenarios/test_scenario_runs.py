@@ -150,7 +150,9 @@ def test_scenario_runs_to_its_end_with_a_scripted_ego(town, scenario_type):
     if scenario_type == "CrossingBicycleFlow":
         # bicycles (CARLA's bicycle blueprints, with their riders), riding the bike lane through the junction
         assert {blueprints.find(t).base_type for t, *_ in trace.scenario_places} == {"bicycle"}
-        assert any(lane_type & LaneType.BIKING and in_junction for _, _, lane_type, in_junction in trace.scenario_places)
+        assert any(
+            lane_type & LaneType.BIKING and in_junction for _, _, lane_type, in_junction in trace.scenario_places
+        )
     if scenario_type == "VanillaSignalizedTurnEncounterRedLight":
         seen = [s for s in trace.ego_light_states if s]
         assert (TrafficLightState.RED,) in seen and any(TrafficLightState.GREEN in s for s in seen)

@@ -75,9 +75,7 @@ class EnterActorFlow(JunctionScenario):
             raise ScenarioSetupError(f"{self.name}: parameter <{tag}> has non-numeric coordinates") from None
         wp = self.ctx.map.get_waypoint(loc)
         if wp is None or wp.transform.location.distance_2d(loc) > 3.0:
-            raise ScenarioSetupError(
-                f"{self.name}: <{tag}> at ({loc.x:.1f}, {loc.y:.1f}) is not on a driving lane"
-            )
+            raise ScenarioSetupError(f"{self.name}: <{tag}> at ({loc.x:.1f}, {loc.y:.1f}) is not on a driving lane")
         return wp
 
     def start(self, snapshot: Snapshot) -> None:

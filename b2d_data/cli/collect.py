@@ -20,11 +20,18 @@ import logging
 import signal
 import sys
 import threading
+import time
+from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
 from b2d_data.format.version import DEFAULT_FORMAT, FormatVersion
+
+if TYPE_CHECKING:  # the collection's modules load only when a collection runs (a fast --help)
+    from b2d_data.collection.runner import Progress
 
 PROG = "b2d-collect"
 #: Exit status when the targets were not all met (usage errors exit with 2, like argparse).
@@ -187,9 +194,84 @@ def _stop_on_sigterm() -> object | None:
     return signal.signal(signal.SIGTERM, _interrupt)
 
 
+class ProgressLine:
+    """The progress bar: clips over the target, attempts, the running routes' frames, elapsed time and ETA.
+
+    The collection reports at least every second while routes run; a ticker thread also redraws every second
+    (counting the ETA down from the last report) so that the clock moves through a route's slow set-up too.
+    """
+
+    BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} clips, {elapsed} elapsed{postfix}"
+
+    def __init__(self, enabled: bool, clock: Callable[[], float] = time.monotonic) -> None:
+        self.enabled, self.clock = enabled, clock
+        self.bar: tqdm | None = None
+        self.failures = 0
+        self._last: Progress | None = None
+        self._last_at = 0.0
+        self._lock = threading.RLock()  # re-entrant: close() may run from an interrupt inside a redraw
+        self._stop = threading.Event()
+        self._ticker: threading.Thread | None = None
+
+    def __call__(self, p: Progress) -> None:
+        """The collection's progress callback."""
+        if p.resumed is not None:
+            self._write(p.resumed.describe())
+        if p.result is not None and p.result.status != "clip":
+            self.failures += 1
+            if self.enabled:
+                self._write(f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}")
+        with self._lock:
+            self._last, self._last_at = p, self.clock()
+            if not self.enabled:
+                return
+            if self.bar is None:
+                self.bar = tqdm(total=p.requested, initial=p.clips, desc=PROG, dynamic_ncols=True,
+                                bar_format=self.BAR_FORMAT, file=sys.stderr)  # fmt: skip
+                self._ticker = threading.Thread(target=self._tick, name="b2d-collect-progress", daemon=True)
+                self._ticker.start()
+            self._draw()
+
+    def text(self) -> str:
+        """The part after the clock: attempts, failures, running routes' frames, ETA (counted down since the
+        last report)."""
+        p = self._last
+        if p is None:
+            return ""
+        eta = None if p.eta is None else max(p.eta - (self.clock() - self._last_at), 0.0)
+        return f"{p.attempts} attempts, {self.failures} failed | {replace(p, eta=eta).describe()}"
+
+    def _draw(self) -> None:
+        assert self.bar is not None and self._last is not None
+        self.bar.n = self._last.clips
+        self.bar.set_postfix_str(self.text(), refresh=False)
+        self.bar.refresh()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):
+            with self._lock:
+                if self.bar is not None and self._last is not None:
+                    self._draw()
+
+    def _write(self, line: str) -> None:
+        if self.bar is not None:
+            tqdm.write(line, file=sys.stderr)
+        else:
+            print(line, file=sys.stderr)
+
+    def close(self) -> None:
+        """Stop the ticker and leave the last line on the terminal."""
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join(timeout=5)
+        with self._lock:
+            if self.bar is not None:
+                self.bar.close()
+
+
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     from b2d_data.collection.plan import CollectError, implemented_scenarios
-    from b2d_data.collection.runner import Progress, collect, summary_table
+    from b2d_data.collection.runner import collect, summary_table
     from b2d_data.collection.towns import TownError
     from b2d_data.format.errors import B2DFormatError
 
@@ -197,39 +279,18 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         print("\n".join(implemented_scenarios()))
         return 0
     _check_args(parser, args)
-    bar: tqdm | None = None
-    failures = 0
-
-    def on_progress(p: Progress) -> None:
-        nonlocal bar, failures
-        if args.no_progress:
-            return
-        if bar is None:
-            bar = tqdm(total=p.requested, initial=p.clips, unit="clip", desc=PROG, dynamic_ncols=True)
-        if p.result is not None and p.result.status != "clip":
-            failures += 1
-            tqdm.write(
-                f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}",
-                file=sys.stderr,
-            )
-        bar.n = p.clips
-        bar.set_postfix(attempts=p.attempts, failed=failures, refresh=False)
-        bar.refresh()
-
+    line = ProgressLine(enabled=not args.no_progress)
     try:
-        summary = collect(_config(args), on_progress)
+        summary = collect(_config(args), line)
     except (CollectError, TownError, B2DFormatError) as exc:
-        if bar is not None:
-            bar.close()
+        line.close()
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        if bar is not None:
-            bar.close()
+        line.close()
         print(f"{PROG}: interrupted; run the same command with --resume to finish", file=sys.stderr)
         return 130
-    if bar is not None:
-        bar.close()
+    line.close()
     print(summary_table(summary))
     per_clip = summary.seconds_per_clip
     timing = f", {per_clip:.1f} s per clip" if per_clip is not None else ""

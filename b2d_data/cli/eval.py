@@ -19,6 +19,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from b2d_data.data import shipped_or_given
 from b2d_data.eval.junctions import MapJunctionProvider
 from b2d_data.eval.report import format_table, plot_abilities
 from b2d_data.eval.results import expand_result_argument, load_result_argument, load_result_set
@@ -44,8 +45,19 @@ def _argument_problem(args: argparse.Namespace) -> str | None:
     return None
 
 
+def _collection_of(results_file: Path) -> tuple[Path, int] | None:
+    """The b2d-collect corpus of a record file and its finished routes (the collection code loads only if asked)."""
+    from b2d_data.collection.corpus import collection_of
+
+    return collection_of(results_file)
+
+
 def _run_summary(args: argparse.Namespace) -> int:
     n_sets = 1 if args.merge else len(args.results)
+    # Bare names of shipped files (bench2drive220.xml, VAD_merged_results.json) work from any folder.
+    args.results = [str(shipped_or_given(Path(a))) if "+" not in a else a for a in args.results]
+    if args.routes is not None:
+        args.routes = shipped_or_given(args.routes)
 
     if args.merge:
         files: list[Path] = []
@@ -69,6 +81,7 @@ def _run_summary(args: argparse.Namespace) -> int:
         junctions=MapJunctionProvider(args.maps_dir) if args.maps_dir is not None else None,
         maps_dir=args.maps_dir,
         strict=args.strict,
+        collections=_collection_of,
     )
     metric_dirs: list[Path | None] = [None] * n_sets
     if len(args.metric_dir) == 1:

@@ -1,28 +1,40 @@
-"""Where route attempts run: in this process, in a local process pool, or on Ray (``ray_backend.py``)."""
+"""Where route attempts run: in this process, in a local process pool, or on Ray (``ray_backend.py``).
+
+Every backend forwards the jobs' frame reports (``progress.py``) to the driver's ``on_frames`` callback: inline
+directly, from pool workers through a queue drained in :meth:`Backend.wait`, from Ray tasks through an actor.
+"""
 
 from __future__ import annotations
 
 import logging
 import os
+import queue
+import signal
+import time
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as wait_futures
 from concurrent.futures.process import BrokenProcessPool
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from b2d_data.collection.job import (
     STATUS_ERROR,
     CollectConfig,
     JobResult,
     exit_with_parent,
+    ignore_interrupts,
     run_route_job,
     shutdown_encoders,
 )
 from b2d_data.collection.plan import CollectError, RouteTask
+from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
 log = logging.getLogger(__name__)
+
+#: Seconds an interrupted collection gives its workers to drop their routes and exit cleanly before killing them.
+ABANDON_GRACE = 15.0
 
 
 class Backend(Protocol):
@@ -34,16 +46,16 @@ class Backend(Protocol):
         """Start a task."""
         ...
 
-    def wait(self) -> list[tuple[RouteTask, JobResult]]:
-        """Block until at least one task finished; return the finished ones."""
+    def wait(self, timeout: float | None = None) -> list[tuple[RouteTask, JobResult]]:
+        """Block until at least one task finished or ``timeout`` seconds passed; return the finished ones."""
         ...
 
     def running(self) -> int:
         """Tasks started and not yet returned by ``wait``."""
         ...
 
-    def close(self) -> None:
-        """Stop; tasks still running are abandoned."""
+    def close(self, abandon: bool = False) -> None:
+        """Stop; with ``abandon`` (the driver was interrupted) running tasks are killed instead of awaited."""
         ...
 
 
@@ -68,55 +80,87 @@ class InlineBackend:
 
     capacity = 1
 
-    def __init__(self, out: Path, config: CollectConfig) -> None:
-        self.out, self.config = out, config
+    def __init__(self, out: Path, config: CollectConfig, on_frames: FrameSink | None = None) -> None:
+        self.out, self.config, self.on_frames = out, config, on_frames
         self._queue: deque[RouteTask] = deque()
 
     def submit(self, task: RouteTask) -> None:
         """Queue the task; it runs in :meth:`wait`."""
         self._queue.append(task)
 
-    def wait(self) -> list[tuple[RouteTask, JobResult]]:
-        """Run the oldest queued task."""
+    def wait(self, timeout: float | None = None) -> list[tuple[RouteTask, JobResult]]:
+        """Run the oldest queued task (to its end: ``timeout`` does not apply; its frame reports arrive meanwhile)."""
         task = self._queue.popleft()
-        return [(task, run_route_job(task.route, task.town, self.out, self.config, task.seed))]
+        previous = set_frame_sink(self.on_frames)
+        try:
+            return [(task, run_route_job(task.route, task.town, self.out, self.config, task.seed))]
+        finally:
+            set_frame_sink(previous)
 
     def running(self) -> int:
         """Queued tasks."""
         return len(self._queue)
 
-    def close(self) -> None:
+    def close(self, abandon: bool = False) -> None:
         """Drop queued tasks and stop this process's encoder pool."""
         self._queue.clear()
         shutdown_encoders()
 
 
-def _worker_init(log_level: int, driver_pid: int) -> None:
-    """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), quiet logging."""
+def _leave(signum: int, frame: object) -> None:
+    """SIGTERM in a pool worker: unwind (the route's writer and simulator clean up), then exit normally."""
+    raise SystemExit(0)
+
+
+def _worker_init(log_level: int, driver_pid: int, reports: Any) -> None:
+    """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), leave Ctrl-C to the
+    driver and stop cleanly on its SIGTERM, quiet logging, frame reports into the driver's queue."""
     exit_with_parent(driver_pid)
+    ignore_interrupts()
+    # An exit through the interpreter (not the default SIGTERM death) releases the worker's semaphores and shared
+    # memory; otherwise the resource tracker reports them as leaked.
+    signal.signal(signal.SIGTERM, _leave)
     logging.basicConfig(level=log_level, format="%(levelname)s %(name)s [%(process)d]: %(message)s")
     logging.getLogger().setLevel(log_level)
+    # Never wait at exit for reports the driver will not read (it may be gone).
+    reports.cancel_join_thread()
+    set_frame_sink(reports.put_nowait)
 
 
 class ProcessPoolBackend:
     """Runs tasks in ``workers`` processes of this machine; each process owns its simulator and map cache."""
 
-    def __init__(self, out: Path, config: CollectConfig, workers: int) -> None:
-        self.out, self.config, self.capacity = out, config, workers
+    def __init__(self, out: Path, config: CollectConfig, workers: int, on_frames: FrameSink | None = None) -> None:
+        import multiprocessing
+
+        self.out, self.config, self.capacity, self.on_frames = out, config, workers, on_frames
         self._futures: dict[Future[JobResult], RouteTask] = {}
+        # spawn/forkserver: a worker never inherits the driver's threads (tqdm, GL) mid-state.
+        method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+        self._context = multiprocessing.get_context(method)
+        self._reports = self._context.Queue()
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        import multiprocessing
-
-        # spawn/forkserver: a worker never inherits the driver's threads (tqdm, GL) mid-state.
-        method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         return ProcessPoolExecutor(
             self.capacity,
-            mp_context=multiprocessing.get_context(method),
+            mp_context=self._context,
             initializer=_worker_init,
-            initargs=(logging.getLogger().getEffectiveLevel(), os.getpid()),
+            initargs=(logging.getLogger().getEffectiveLevel(), os.getpid(), self._reports),
         )
+
+    def _drain_reports(self) -> None:
+        """Hand the workers' frame reports to ``on_frames``."""
+        while True:
+            try:
+                report = self._reports.get_nowait()
+            except queue.Empty:
+                return
+            except Exception:  # e.g. a report cut short by a killed worker; progress is best effort
+                log.debug("cannot read a frame report", exc_info=True)
+                return
+            if self.on_frames is not None and isinstance(report, FrameReport):
+                self.on_frames(report)
 
     def submit(self, task: RouteTask) -> None:
         """Start the task in a worker."""
@@ -127,9 +171,10 @@ class ProcessPoolBackend:
             future = self._pool.submit(run_route_job, task.route, task.town, self.out, self.config, task.seed)
         self._futures[future] = task
 
-    def wait(self) -> list[tuple[RouteTask, JobResult]]:
+    def wait(self, timeout: float | None = None) -> list[tuple[RouteTask, JobResult]]:
         """Results of the tasks that finished (a dead worker fails its tasks, and the pool is rebuilt)."""
-        done, _ = wait_futures(list(self._futures), return_when=FIRST_COMPLETED)
+        done, _ = wait_futures(list(self._futures), timeout=timeout, return_when=FIRST_COMPLETED)
+        self._drain_reports()
         out: list[tuple[RouteTask, JobResult]] = []
         broken = False
         for future in done:
@@ -155,20 +200,40 @@ class ProcessPoolBackend:
         """Tasks in flight."""
         return len(self._futures)
 
-    def close(self) -> None:
-        """Shut the pool down (running tasks are cancelled where possible)."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
+    def close(self, abandon: bool = False) -> None:
+        """Shut the pool down; queued tasks are cancelled, running ones awaited unless ``abandon`` (then killed)."""
+        if abandon:
+            self._abandon()
+        else:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._reports.close()
+        self._reports.join_thread()
+
+    def _abandon(self) -> None:
+        """Stop the workers now (a route can run for minutes): SIGTERM drops their routes, a late one is killed."""
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        for process in processes:
+            process.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        deadline = time.monotonic() + ABANDON_GRACE
+        for process in processes:
+            process.join(timeout=max(deadline - time.monotonic(), 0.0))
+            if process.is_alive():
+                log.warning("worker %d did not stop within %.0f s; killing it", process.pid, ABANDON_GRACE)
+                process.kill()
+                process.join(timeout=5.0)
 
 
-def make_backend(out: Path, config: CollectConfig) -> Backend:
-    """Ray with ``ray_address``, a process pool with several workers, else this process."""
+def make_backend(out: Path, config: CollectConfig, on_frames: FrameSink | None = None) -> Backend:
+    """Ray with ``ray_address``, a process pool with several workers, else this process; frame reports go to
+    ``on_frames``."""
     if config.ray_address is not None:
         from b2d_data.collection.ray_backend import RayBackend, RayUnavailableError
 
         try:
-            return RayBackend(out, config, config.ray_address)
+            return RayBackend(out, config, config.ray_address, on_frames)
         except RayUnavailableError as exc:
             raise CollectError(str(exc)) from None
     if config.workers > 1:
-        return ProcessPoolBackend(out, config, config.workers)
-    return InlineBackend(out, config)
+        return ProcessPoolBackend(out, config, config.workers, on_frames)
+    return InlineBackend(out, config, on_frames)

@@ -17,6 +17,8 @@ import re
 import shutil
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -155,8 +157,45 @@ def _recovered(path: Path) -> JobResult | None:
     )  # fmt: skip
 
 
-def reconcile(out: Path, records: list[dict[str, Any]], config: CollectConfig, run_log: rl.RunLog) -> None:
+@dataclass
+class ResumeReport:
+    """What a resume found: the work kept, the work adopted from the disk, and what it threw away."""
+
+    #: Complete clips of earlier sessions that count towards the targets.
+    clips_kept: int = 0
+    #: Finished attempts of earlier sessions (their routes are not run again).
+    attempts_kept: int = 0
+    #: Routes whose finished attempt reached results/ but not the run log, adopted now.
+    adopted: list[str] = field(default_factory=list)
+    #: Routes started but never finished; they run again.
+    interrupted: list[str] = field(default_factory=list)
+    #: Half-written temporaries removed (paths relative to the corpus).
+    discarded: list[str] = field(default_factory=list)
+    #: Complete clips without a route record, moved to failed/ (relative paths).
+    set_aside: list[str] = field(default_factory=list)
+
+    def describe(self) -> str:
+        """One paragraph for the user: kept, recovered, discarded, run again."""
+
+        def some(items: list[str], limit: int = 3) -> str:
+            shown = ", ".join(items[:limit])
+            return f"{shown}, +{len(items) - limit} more" if len(items) > limit else shown
+
+        parts = [f"kept {self.clips_kept} complete clip(s) from {self.attempts_kept} finished attempt(s)"]
+        if self.adopted:
+            parts.append(f"recovered {len(self.adopted)} finished route(s) from results/ ({some(self.adopted)})")
+        if self.discarded:
+            parts.append(f"discarded {len(self.discarded)} half-written temporary item(s) ({some(self.discarded)})")
+        if self.set_aside:
+            parts.append(f"moved {len(self.set_aside)} clip(s) without a record to {FAILED_DIR}/")
+        if self.interrupted:
+            parts.append(f"{len(self.interrupted)} interrupted route(s) run again: {some(self.interrupted)}")
+        return "resume: " + "; ".join(parts)
+
+
+def reconcile(out: Path, records: list[dict[str, Any]], config: CollectConfig, run_log: rl.RunLog) -> ResumeReport:
     """Adopt what reached the disk before a crash but not the run log: clips and route records."""
+    report = ResumeReport()
     finished = {str(r.get("route_id")) for r in rl.final_records(records)}
     clips = _clips_on_disk(out)
     results_dir = out / RESULTS_DIR
@@ -176,15 +215,55 @@ def reconcile(out: Path, records: list[dict[str, Any]], config: CollectConfig, r
         run_log.append(recovered.to_record())
         records.append(recovered.to_record())
         finished.add(recovered.route_id)
+        report.adopted.append(recovered.route_id)
     for route_id, clip_dir in clips.items():
         if route_id not in finished:
             # A complete clip without any record cannot be vouched for: keep it aside, never count it.
             log.warning("clip %s has no route record; moving it to %s/", clip_dir.name, FAILED_DIR)
-            move_to_failed(out, clip_dir.name)
+            report.set_aside.append(move_to_failed(out, clip_dir.name))
+    return report
 
 
-def prepare_corpus(out: Path, config: CollectConfig) -> None:
-    """Refuse to reuse a collection folder without ``resume``; remove what dead writers left behind."""
+def record_discarded(run_log: rl.RunLog, records: list[dict[str, Any]], out: Path, removed: list[Path]) -> list[str]:
+    """Append a ``discarded`` record for each removed temporary; returns their paths relative to the corpus."""
+    paths = []
+    for path in removed:
+        relative = str(path.relative_to(out)) if path.is_relative_to(out) else str(path)
+        match = _TEMP_RE.match(path.name)
+        record = {"event": rl.EVENT_DISCARDED, "path": relative, "name": match["name"] if match else path.name,
+                  "reason": "half-written by a process that is gone", "time": now_iso()}  # fmt: skip
+        run_log.append(record)
+        records.append(record)
+        paths.append(relative)
+    return paths
+
+
+def record_interrupted(run_log: rl.RunLog, records: list[dict[str, Any]], route_ids: list[str], detected: str) -> None:
+    """Append an ``interrupted`` record for each route (``detected``: when the interruption was noticed)."""
+    for route_id in route_ids:
+        record = {"event": rl.EVENT_INTERRUPTED, "route_id": str(route_id), "detected": detected, "time": now_iso()}
+        run_log.append(record)
+        records.append(record)
+
+
+def collection_of(results_file: Path) -> tuple[Path, int] | None:
+    """The corpus that wrote a route-record file (``<root>/results/<file>`` beside a run log) and its number of
+    routes with a finished attempt (each has its record in ``results/``); None for any other file."""
+    folder = Path(results_file).resolve().parent
+    root = folder.parent
+    if folder.name != RESULTS_DIR or not (root / rl.LOG_FILE).is_file():
+        return None
+    finals = rl.final_records(rl.read_run_log(root / rl.LOG_FILE))
+    return root, len({str(r.get("route_id")) for r in finals})
+
+
+def now_iso() -> str:
+    """The UTC time in the run log's format."""
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
+
+
+def prepare_corpus(out: Path, config: CollectConfig) -> list[Path]:
+    """Refuse to reuse a collection folder without ``resume``; remove what dead writers left behind (returned)."""
     log_path = out / rl.LOG_FILE
     if log_path.exists() and not config.resume:
         raise CollectError(
@@ -202,3 +281,4 @@ def prepare_corpus(out: Path, config: CollectConfig) -> None:
         raise CollectError(f"process(es) {pids} still write into {out} ({live[0][0].name}); stop them first")
     if removed:
         log.info("removed %d stale temporary file(s)/folder(s)", len(removed))
+    return removed

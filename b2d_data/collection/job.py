@@ -30,6 +30,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from b2d_data.collection.progress import FrameReporter
 from b2d_data.collection.towns import TownSource, ensure_hdmap, load_map
 from b2d_data.format import leaderboard as lb
 from b2d_data.format.names import ClipName, canonical_clip_prefix
@@ -177,9 +178,15 @@ def exit_with_parent(pid: int, interval: float = 0.5) -> None:
     threading.Thread(target=watch, name="b2d-owner-watch", daemon=True).start()
 
 
+def ignore_interrupts() -> None:
+    """Helper processes leave Ctrl-C to the collection's driver, which stops them (no traceback from each)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _encoder_init(owner_pid: int) -> None:
     from b2d_data.writers.frame_jobs import init_worker
 
+    ignore_interrupts()
     init_worker()
     exit_with_parent(owner_pid)
 
@@ -320,6 +327,17 @@ class _FrameSink:
         self.write_time += t3 - t2
 
 
+def _reporting(sink: _FrameSink | None, reporter: FrameReporter) -> Any:
+    """The frame callback: report the route's progress to the driver, then record the frame (if sensors)."""
+
+    def on_frame(snapshot: Any, info: Any) -> None:
+        reporter(info.frame_index + 1, info.score_route)
+        if sink is not None:
+            sink(snapshot, info)
+
+    return on_frame
+
+
 def _counted_collision(snapshot: Any, ego_id: int) -> bool:
     """An ego collision that CollisionTest always counts when it is the first one (so the route fails)."""
     ego = snapshot.actors.get(ego_id)
@@ -443,7 +461,7 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
             expert,
             seed=seed,
             record_every=2,
-            on_frame=sink,
+            on_frame=_reporting(sink, FrameReporter(str(route.id), str(name))),
             on_start=on_start,
             dense_route=dense,
             scenario_manager_factory=scenarios,

@@ -1,8 +1,11 @@
 """The run log of a collection: ``<out>/run_log.jsonl``, one JSON object per line, append-only and fsync'd.
 
-Two kinds of lines: ``{"event": "start", ...}`` when an attempt is launched and ``{"event": "attempt", ...}`` when
-it ends (a :class:`~b2d_data.collection.job.JobResult`). A route with a start line but no attempt line was
-interrupted (crash, ``kill -9``); resume runs it again. Only the collection's driver process writes the log, so
+Two kinds of lines describe attempts: ``{"event": "start", ...}`` when an attempt is launched and
+``{"event": "attempt", ...}`` when it ends (a :class:`~b2d_data.collection.job.JobResult`). A route with a start line
+but no attempt line was interrupted; resume runs it again. Two more kinds say what happened to interrupted work:
+``{"event": "interrupted", "route_id": ...}`` records it (written on Ctrl-C / SIGTERM, or by the resume that
+finds the start of a ``kill -9``-ed run), and ``{"event": "discarded", "path": ...}`` names a half-written
+temporary that a resume removed. Only the collection's driver process writes the log, so
 lines never interleave. A line cut short by a crash is skipped with a warning when reading, and the next append
 starts on a fresh line.
 """
@@ -21,6 +24,8 @@ log = logging.getLogger(__name__)
 LOG_FILE = "run_log.jsonl"
 EVENT_START = "start"
 EVENT_ATTEMPT = "attempt"
+EVENT_INTERRUPTED = "interrupted"
+EVENT_DISCARDED = "discarded"
 
 
 class RunLog:
@@ -87,6 +92,20 @@ def interrupted_routes(records: Iterable[Mapping[str, Any]]) -> list[str]:
         if r.get("event") == EVENT_START and rid not in finished and rid not in out:
             out.append(rid)
     return out
+
+
+def unrecorded_interruptions(records: Iterable[Mapping[str, Any]]) -> list[str]:
+    """Interrupted routes whose interruption has no ``interrupted`` record yet (the driver was killed outright)."""
+    records = list(records)
+    finished = {str(r.get("route_id")) for r in final_records(records)}
+    open_starts: dict[str, None] = {}
+    for r in records:
+        rid = str(r.get("route_id"))
+        if r.get("event") == EVENT_START and rid not in finished:
+            open_starts[rid] = None
+        elif r.get("event") == EVENT_INTERRUPTED:
+            open_starts.pop(rid, None)
+    return list(open_starts)
 
 
 def _fsync_dir(folder: Path) -> None:

@@ -21,7 +21,15 @@ from typing import Any
 
 from b2d_data.collection import run_log as rl
 from b2d_data.collection.backends import Backend, make_backend
-from b2d_data.collection.corpus import check_settings, corpus_lock, prepare_corpus, reconcile
+from b2d_data.collection.corpus import (
+    ResumeReport,
+    check_settings,
+    corpus_lock,
+    prepare_corpus,
+    reconcile,
+    record_discarded,
+    record_interrupted,
+)
 from b2d_data.collection.job import (
     STATUS_CLIP,
     STATUS_ERROR,
@@ -34,6 +42,15 @@ from b2d_data.collection.plan import (
     RouteTask,
     plan_collection,
     validate_config,
+)
+from b2d_data.collection.progress import (
+    REFRESH_SECONDS,
+    FrameReport,
+    ProgressState,
+    RouteProgress,
+    describe_routes,
+    format_seconds,
+    frames_of,
 )
 from b2d_data.collection.towns import (
     ensure_hdmap,
@@ -110,12 +127,29 @@ class CollectSummary:
 
 @dataclass(frozen=True)
 class Progress:
-    """A progress report for the CLI's bar: clips so far over the target, attempts, the last result."""
+    """A progress report for the CLI: clips so far over the target, attempts, the last result (when one just
+    finished), the running routes' frames, this session's elapsed time, its frame-based ETA, and on the first
+    report of a resume what the resume kept and discarded. Sent at least every ``REFRESH_SECONDS`` while routes
+    run (inline: with each frame report)."""
 
     clips: int
     requested: int
     attempts: int
     result: JobResult | None = None
+    elapsed: float = 0.0
+    #: Seconds left (None until a route length in frames can be estimated).
+    eta: float | None = None
+    routes: tuple[RouteProgress, ...] = ()
+    #: Frames of a typical route of this collection (None before any estimate).
+    typical_frames: float | None = None
+    #: Frames recorded in this session.
+    frames: int = 0
+    resumed: ResumeReport | None = None
+
+    def describe(self) -> str:
+        """``Route12 Accident 123/~310 fr; Route14 ... | ETA 12:34`` for a progress line."""
+        routes = describe_routes(self.routes, self.typical_frames)
+        return f"{routes + ' | ' if routes else ''}ETA {format_seconds(self.eta)}"
 
 
 def _is_clip(record: dict[str, Any], out: Path, sensors: bool) -> bool:
@@ -167,7 +201,7 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
             f"{out} already holds a collection ({rl.LOG_FILE}); pass --resume to continue it, or choose another --out"
         )
     with corpus_lock(out):
-        prepare_corpus(out, config)
+        removed = prepare_corpus(out, config)
         plan = plan_collection(config)
         check_settings(out, plan.settings, config.resume)
         if config.sensors:
@@ -175,12 +209,11 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
                 ensure_hdmap(load_map(town), out)
         run_log = rl.RunLog(out / rl.LOG_FILE)
         records = rl.read_run_log(run_log.path)
+        resumed = None
         if config.resume:
-            reconcile(out, records, config, run_log)
-            interrupted = rl.interrupted_routes(records)
-            if interrupted:
-                log.info("%d route(s) were interrupted and run again: %s", len(interrupted), ", ".join(interrupted))
-        session = _Session(plan, out, config, run_log, records, progress)
+            resumed = _resume(out, records, config, run_log, removed)
+            log.info("%s", resumed.describe())
+        session = _Session(plan, out, config, run_log, records, progress, resumed)
         attempts, clips = session.run()
         summary = CollectSummary(
             str(out),
@@ -195,6 +228,20 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
         return summary
 
 
+def _resume(
+    out: Path, records: list[dict[str, Any]], config: CollectConfig, run_log: rl.RunLog, removed: list[Path]
+) -> ResumeReport:
+    """Reconcile the corpus with its run log; log what was discarded and which interruptions had no record."""
+    report = reconcile(out, records, config, run_log)
+    report.discarded = record_discarded(run_log, records, out, removed)
+    report.interrupted = rl.interrupted_routes(records)
+    record_interrupted(run_log, records, rl.unrecorded_interruptions(records), "on resume")
+    finals = rl.final_records(records)
+    report.attempts_kept = len(finals)
+    report.clips_kept = sum(1 for r in finals if _is_clip(r, out, config.sensors))
+    return report
+
+
 class _Session:
     """The launch loop of one ``collect`` call."""
 
@@ -206,9 +253,11 @@ class _Session:
         run_log: rl.RunLog,
         records: list[dict[str, Any]],
         progress: Callable[[Progress], None] | None,
+        resumed: ResumeReport | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.plan, self.out, self.config, self.run_log, self.records = plan, out, config, run_log, records
-        self.progress = progress
+        self.progress, self.resumed, self.clock = progress, resumed, clock
         finals = rl.final_records(records)
         # A route whose attempts all ended in an error (a crash, not a verdict on the route) is tried again.
         attempted = {str(r.get("route_id")) for r in finals if r.get("status") != STATUS_ERROR}
@@ -221,6 +270,14 @@ class _Session:
         self.target = {sp.scenario: sp.target for sp in plan.scenarios}
         self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
+        self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
+        mine = set().union(*ids_of.values()) if ids_of else set()
+        self.state.finished_frames = [
+            frames_of(int(r.get("ticks") or 0), int(r.get("frames") or 0))
+            for r in finals
+            if str(r.get("route_id")) in mine and (r.get("ticks") or r.get("frames"))
+        ]
+        self._last_report: float | None = None
 
     def _clips(self) -> int:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
@@ -235,13 +292,36 @@ class _Session:
                 return self.pending[scenario].popleft()
         return None
 
-    def run(self) -> tuple[int, int]:
+    def report(self, result: JobResult | None = None, force: bool = False) -> None:
+        """Call the progress callback: always with a result or ``force``, else when the last call is
+        ``REFRESH_SECONDS`` old."""
+        if self.progress is None:
+            return
+        now = self.clock()
+        recent = self._last_report is not None and now - self._last_report < REFRESH_SECONDS
+        if recent and not force and result is None:
+            return
+        self._last_report = now
+        state = self.state
+        typical = state.typical_frames()
+        self.progress(Progress(
+            self._clips(), self.requested, state.attempts, result, state.elapsed(), state.eta(), state.routes(),
+            typical, state.frames_this_run(), self.resumed if result is None and force else None,
+        ))  # fmt: skip
+
+    def frames_reported(self, report: FrameReport) -> None:
+        """A job's frame report (the backends call this)."""
+        self.state.frames_reported(report)
+        self.report()
+
+    def run(self, backend: Backend | None = None) -> tuple[int, int]:
         """Launch and collect attempts until nothing is left to do; returns (attempts, clips) of this run."""
         attempts = clips = 0
-        if self.progress is not None:
-            self.progress(Progress(self._clips(), self.requested, self.attempts_before))
-        backend = make_backend(self.out, self.config)
+        self.report(force=True)
+        if backend is None:
+            backend = make_backend(self.out, self.config, self.frames_reported)
         order = deque(self.target)
+        abandon = False
         try:
             while True:
                 while backend.running() < backend.capacity:
@@ -251,7 +331,7 @@ class _Session:
                     self._launch(backend, task)
                 if backend.running() == 0:
                     break
-                for task, result in backend.wait():
+                for task, result in backend.wait(timeout=REFRESH_SECONDS):
                     self.in_flight[task.scenario] -= 1
                     attempts += 1
                     if result.status == STATUS_CLIP:
@@ -260,10 +340,22 @@ class _Session:
                     record = result.to_record()
                     self.run_log.append(record)
                     self.records.append(record)
-                    if self.progress is not None:
-                        self.progress(Progress(self._clips(), self.requested, self.attempts_before + attempts, result))
+                    self.state.route_finished(task.route.id, frames_of(result.ticks, result.frames),
+                                              result.status == STATUS_CLIP)  # fmt: skip
+                    self.state.clips = self._clips()
+                    self.report(result)
+                self.report()
+        except BaseException as exc:
+            abandon = True
+            running = list(self.state.running)
+            backend.close(abandon=True)
+            # The run log says why these starts have no attempt; resume runs them again.
+            how = "on interrupt" if isinstance(exc, KeyboardInterrupt) else f"on {type(exc).__name__}"
+            record_interrupted(self.run_log, self.records, running, how)
+            raise
         finally:
-            backend.close()
+            if not abandon:
+                backend.close()
         return attempts, clips
 
     def _launch(self, backend: Backend, task: RouteTask) -> None:
@@ -273,6 +365,7 @@ class _Session:
         self.run_log.append(start)
         self.records.append(start)
         self.in_flight[task.scenario] += 1
+        self.state.route_started(str(task.route.id), task.scenario)
         backend.submit(task)
 
 

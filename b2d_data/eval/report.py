@@ -71,6 +71,9 @@ def format_table(summaries: Sequence[SetSummary]) -> str:
         return "  ".join([cells[0].ljust(widths[0])] + [c.rjust(w) for c, w in zip(cells[1:], widths[1:])])
 
     out = [render(header), "  ".join("-" * w for w in widths)] + [render(r) for r in lines]
+    counted = [f"[{s.name}] {s.scores.num_routes}: {s.route_count.reason}" for s in summaries if s.route_count]
+    if counted:
+        out += ["", "Expected routes (denominator of driving score and success rate):"] + [f"  {c}" for c in counted]
     notes = [f"[{s.name}] {w}" for s in summaries for w in s.warnings]
     if notes:
         out += ["", "Notes:"] + [f"  {n}" for n in notes]

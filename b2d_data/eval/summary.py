@@ -23,9 +23,10 @@ from b2d_data.eval.abilities import (
     TrafficSignCheck,
     compute_abilities,
 )
-from b2d_data.eval.driving_score import BENCH2DRIVE_ROUTES, DrivingScores, driving_scores
+from b2d_data.eval.driving_score import DrivingScores, driving_scores
 from b2d_data.eval.efficiency import Efficiency, driving_efficiency, route_efficiency
 from b2d_data.eval.results import EvalInputError, ResultSet
+from b2d_data.eval.route_count import CollectionLookup, RouteCount, route_count
 from b2d_data.eval.smoothness import Smoothness, driving_smoothness
 from b2d_data.format.leaderboard import GlobalRecord, compute_global_record
 from b2d_data.scenarios.route_xml import Route
@@ -40,7 +41,8 @@ SUMMARY_VERSION = 1
 class EvalSettings:
     """What to compute and against what."""
 
-    #: Denominator of driving score and success rate; None → the route XML's count, else 220.
+    #: Denominator of driving score and success rate; None → the route XML's count, else the collection's (records
+    #: of b2d-collect), else 220 (``route_count.py``).
     num_routes: int | None = None
     routes: Sequence[Route] | None = None
     routes_file: Path | None = None
@@ -50,13 +52,8 @@ class EvalSettings:
     junctions: JunctionProvider | None = None
     maps_dir: Path | None = None
     strict: bool = False
-
-    @property
-    def expected_routes(self) -> int:
-        """The denominator actually used."""
-        if self.num_routes is not None:
-            return self.num_routes
-        return len(self.routes) if self.routes is not None else BENCH2DRIVE_ROUTES
+    #: Finds the b2d-collect corpus of a record file (None: b2d-collect records count one route each).
+    collections: CollectionLookup | None = None
 
 
 @dataclass
@@ -72,6 +69,8 @@ class SetSummary:
     abilities: AbilityResult | None = None
     missing_routes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: The denominator of driving score and success rate and where it comes from.
+    route_count: RouteCount | None = None
 
     @property
     def name(self) -> str:
@@ -114,7 +113,8 @@ def _unchecked_warnings(abilities: AbilityResult) -> list[str]:
 def evaluate(result_set: ResultSet, settings: EvalSettings, metric_dir: Path | None = None) -> SetSummary:
     """Compute every figure of one result set (``metric_dir`` overrides ``settings.metric_dir``)."""
     warnings: list[str] = []
-    num_routes = settings.expected_routes
+    count = route_count(result_set, settings)
+    num_routes = count.value
     records = result_set.records
     missing_routes: list[str] = []
     if settings.routes is not None:
@@ -174,6 +174,7 @@ def evaluate(result_set: ResultSet, settings: EvalSettings, metric_dir: Path | N
         abilities=abilities,
         missing_routes=missing_routes,
         warnings=warnings,
+        route_count=count,
     )
 
 
@@ -271,6 +272,7 @@ def set_summary_json(summary: SetSummary, settings: EvalSettings) -> dict[str, A
         "records_read": rs.records_read,
         "records": sc.num_records,
         "expected_routes": sc.num_routes,
+        "expected_routes_reason": summary.route_count.reason if summary.route_count is not None else None,
         "missing_routes": summary.missing_routes,
         "duplicates": [
             {"route": d.route, "occurrences": list(d.occurrences), "kept": d.kept} for d in rs.duplicates
@@ -296,6 +298,7 @@ def set_summary_json(summary: SetSummary, settings: EvalSettings) -> dict[str, A
 
 def summary_json(summaries: Sequence[SetSummary], settings: EvalSettings) -> dict[str, Any]:
     """The whole evaluation: settings, units and one object per result set."""
+    counts = {s.scores.num_routes for s in summaries}
     return {
         "format": SUMMARY_FORMAT,
         "version": SUMMARY_VERSION,
@@ -303,7 +306,8 @@ def summary_json(summaries: Sequence[SetSummary], settings: EvalSettings) -> dic
             "driving_score, success_rate, route_completion, infraction_penalty, efficiency, smoothness and "
             "abilities are percentages (0-100); global_record.infractions are events per km driven"
         ),
-        "num_routes": settings.expected_routes,
+        # One count for every set, else None (each set's expected_routes then says its own).
+        "num_routes": next(iter(counts)) if len(counts) == 1 else None,
         "routes_file": str(settings.routes_file) if settings.routes_file else None,
         "maps_dir": str(settings.maps_dir) if settings.maps_dir else None,
         "smoothness_modes": {

@@ -125,6 +125,20 @@ def test_collects_exactly_n_clips_that_load(collection):
         assert read_jpeg(clip / "camera" / "rgb_top_down" / f"{n - 1:05d}.jpg").shape == (36, 64, 3)
 
 
+def test_eval_summary_of_the_collection_scores_its_own_routes(collection, tmp_path, capsys):
+    """``b2d-eval summary OUT/results``, as ``b2d-collect --help`` suggests: over the N routes run, not 220."""
+    from b2d_data.cli.eval import main as eval_main
+
+    out = tmp_path / "summary.json"
+    assert eval_main(["summary", str(collection / "results"), "--out", str(out)]) == 0
+    data = json.loads(out.read_text())["result_sets"][0]
+    finals = rl.final_records(rl.read_run_log(collection / rl.LOG_FILE))
+    assert len(finals) == N and data["expected_routes"] == N
+    assert data["driving_score"] == pytest.approx(sum(r["score_composed"] for r in finals) / N)
+    assert data["success_rate"] == pytest.approx(100.0)  # both attempts made clips
+    assert f"[results] {N}: b2d-collect collection" in capsys.readouterr().out
+
+
 def _resimulate(collection: Path, clip: Path, short_routes) -> list[dict]:
     """Run the clip's route again without sensors, recording the simulator state at every recorded tick."""
     from b2d_data.expert import Expert, ExpertConfig
@@ -326,19 +340,31 @@ def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeo
     return helpers
 
 
-def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path):
+def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(collection, short_routes, tmp_path, capsys):
     out = tmp_path / "data"
     out.mkdir()
     shutil.copytree(collection / "maps", out / "maps")  # the HD-map export is tested above; skip its 5 s here
     args = _args(short_routes, out, "--encode-workers", "1")  # with an encoder process, which must die too
     helpers = _kill_mid_collection(args, out)
     assert len(_clips(out)) == 1 and _temporaries(out), "expected one clip and one half-written clip"
+    half_written = sorted(str(p.relative_to(out)) for p in out.glob(".*.tmp-*"))
     before = rl.read_run_log(out / rl.LOG_FILE)
     assert len(rl.interrupted_routes(before)) == 1
+    killed_route = rl.interrupted_routes(before)[0]
     _assert_all_exit(helpers)
 
     assert main(args) == 2  # a used folder needs --resume
+    capsys.readouterr()
     assert main([*args, "--resume"]) == 0
+    # The resume says what it kept and what it threw away, and the run log records both.
+    err = capsys.readouterr().err
+    assert "resume: kept 1 complete clip(s) from 1 finished attempt(s)" in err, err
+    assert f"discarded {len(half_written)} half-written" in err and f"run again: {killed_route}" in err, err
+    log_records = rl.read_run_log(out / rl.LOG_FILE)
+    discarded = [r for r in log_records if r["event"] == rl.EVENT_DISCARDED]
+    assert sorted(r["path"] for r in discarded) == half_written
+    interrupted = [r for r in log_records if r["event"] == rl.EVENT_INTERRUPTED]
+    assert [(r["route_id"], r["detected"]) for r in interrupted] == [(killed_route, "on resume")]
 
     clips = _clips(out)
     assert len(clips) == N
@@ -407,6 +433,36 @@ def test_physics_only_in_two_worker_processes_matches_the_sensor_run(collection,
         assert (out / "results" / f"{r['clip']}.json").is_file()
 
 
+@pytest.mark.parametrize("workers", [1, 2], ids=["inline", "pool"])
+def test_jobs_report_their_frames_to_the_driver(short_routes, tmp_path, workers):
+    """Each job's first frame report, and more while its route runs, reach the driver's ``on_frames``."""
+    from b2d_data.cli.collect import _config, build_parser
+    from b2d_data.collection.backends import InlineBackend, ProcessPoolBackend
+    from b2d_data.collection.plan import plan_collection
+    from b2d_data.collection.progress import frames_of
+
+    config = _config(build_parser().parse_args([*_args(short_routes, tmp_path / "r"), "--no-sensors"]))
+    tasks = plan_collection(config).scenarios[0].tasks[:workers]
+    reports = []
+    if workers == 1:
+        backend = InlineBackend(tmp_path / "r", config, on_frames=reports.append)
+    else:
+        backend = ProcessPoolBackend(tmp_path / "r", config, workers, on_frames=reports.append)
+    results = {}
+    try:
+        for task in tasks:
+            backend.submit(task)
+        while backend.running():
+            results.update((str(task.route.id), result) for task, result in backend.wait(timeout=1.0))
+    finally:
+        backend.close()
+    assert sorted(results) == sorted(str(t.route.id) for t in tasks)
+    for route_id, result in results.items():
+        frames = [r.frames for r in reports if r.route_id == route_id]
+        assert frames and frames[0] == 1 and frames == sorted(frames), (route_id, frames)
+        assert frames[-1] <= frames_of(result.ticks, result.frames)
+
+
 def test_ray_requested_without_ray_is_a_clear_error(short_routes, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
     assert main([*_args(short_routes, tmp_path / "r"), "--ray", "auto"]) == 2
@@ -450,6 +506,49 @@ def test_resume_adopts_what_reached_the_disk_before_a_crash(tmp_path):
     assert finals["2"]["status"] == "failed" and finals["2"]["clip_path"] == f"failed/{kept_failed}"
     assert not (out / kept_failed).exists() and (out / "failed" / kept_failed).is_dir()
     assert not (out / lost).exists()
+
+
+@pytest.mark.parametrize(
+    "how", ["ctrl-c on two workers", "kill (SIGTERM) in this process"], ids=["sigint-pool", "sigterm-inline"]
+)
+def test_interrupting_prints_no_traceback_and_records_the_routes(collection, short_routes, tmp_path, how):
+    """Ctrl-C reaches every process of the terminal's group; kill only the driver. Both end quietly."""
+    out = tmp_path / "data"
+    out.mkdir()
+    shutil.copytree(collection / "maps", out / "maps")
+    ctrl_c = how.startswith("ctrl-c")
+    args = _args(short_routes, out, "--encode-workers", "1", *(["--workers", "2"] if ctrl_c else []))
+    stderr_path = tmp_path / "stderr.txt"
+    with open(stderr_path, "wb") as stderr:
+        proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], stdout=subprocess.DEVNULL,
+                                stderr=stderr, start_new_session=True)  # fmt: skip
+        helpers: set[int] = set()
+        try:
+            deadline = time.monotonic() + 240
+            while time.monotonic() < deadline and proc.poll() is None:
+                helpers |= _descendants(proc.pid)
+                if [p for p in out.glob(".*.tmp-*") if p.is_dir() and len(list(p.glob("anno/*.json.gz"))) >= 3]:
+                    break
+                time.sleep(0.05)
+            helpers |= _descendants(proc.pid)
+            assert proc.poll() is None, "the collection ended before it could be interrupted"
+            if ctrl_c:
+                os.killpg(proc.pid, signal.SIGINT)
+            else:
+                os.kill(proc.pid, signal.SIGTERM)
+            assert proc.wait(timeout=60) == 130
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    err = stderr_path.read_text()
+    assert "Traceback" not in err and "leaked semaphore" not in err, err
+    assert err.strip().splitlines()[-1] == "b2d-collect: interrupted; run the same command with --resume to finish"
+    _assert_all_exit(helpers)
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    interrupted = [r["route_id"] for r in records if r["event"] == rl.EVENT_INTERRUPTED]
+    assert interrupted and sorted(interrupted) == sorted(rl.interrupted_routes(records))
+    assert all(r["detected"] == "on interrupt" for r in records if r["event"] == rl.EVENT_INTERRUPTED)
 
 
 def _assert_all_exit(pids: set[int], timeout: float = 10.0) -> None:

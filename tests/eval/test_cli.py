@@ -115,8 +115,11 @@ def test_vad_summary(b2d_data_dir, tmp_path, capsys):
     assert rows["Efficiency (%)"] == ["157.95"]
     assert "7 missing route(s) count 0" in printed
     assert "pass --routes" in printed and not out.with_name("vad_abilities.png").exists()
+    # Leaderboard records (not b2d-collect's): over Bench2Drive's 220 routes, and the output says so.
+    assert "[VAD_merged_results] 220: Bench2Drive's 220 evaluation routes (bench2drive220)" in printed
     data = json.loads(out.read_text())["result_sets"][0]
     assert data["records"] == 213 and data["expected_routes"] == 220 and data["abilities"] is None
+    assert data["expected_routes_reason"].startswith("Bench2Drive's 220 evaluation routes")
 
 
 def _error_line(capsys) -> str:
@@ -170,3 +173,13 @@ def test_merge_flag_makes_one_set_of_all_files(synthetic_run, tmp_path, capsys):
     assert main(["summary", *files, "--merge", "--names", "run", "--num-routes", "8", "--out", str(out)]) == 0
     (only,) = json.loads(out.read_text())["result_sets"]
     assert only["name"] == "run" and only["records"] == 7 and only["driving_score"] == pytest.approx(62.5)
+
+
+def test_shipped_files_by_bare_name(tmp_path, monkeypatch, capsys):
+    # From a folder holding neither file, the bare names reach the copies the package ships.
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "s.json"
+    assert main(["summary", "VAD_merged_results.json", "--routes", "bench2drive220.xml", "--out", str(out)]) == 0
+    result = json.loads(out.read_text())["result_sets"][0]
+    assert result["driving_score"] == pytest.approx(42.35, abs=0.005)
+    assert result["abilities"]["Overtaking"]["value"] == pytest.approx(24.44, abs=0.005)  # 11 of 45 routes

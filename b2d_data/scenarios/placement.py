@@ -23,6 +23,8 @@ from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
+from b2d_data.scenarios.catalog.junctions import walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     connection,
@@ -152,6 +154,8 @@ class Layout:
     departure: tuple[float, float] = (22.0, 30.0)
     trigger_offset: tuple[float, float] = (2.0, 8.0)
     junction_extra: Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]] | None = None
+    #: Junction layouts: a further check of the connection in its town (e.g. an interurban road's speed limit).
+    junction_ok: Callable[[Map, JunctionLane, list[JunctionLane]], bool] | None = None
 
     @property
     def is_junction(self) -> bool:
@@ -262,15 +266,13 @@ def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[d
 ENTER_FLOW_BACK, ENTER_FLOW_AFTER = 55.0, 22.0
 
 
-def _xyz(wp: Waypoint) -> dict[str, str]:
+def _xml_location(wp: Waypoint) -> dict[str, str]:
     loc = wp.transform.location
     return {"x": f"{loc.x:.1f}", "y": f"{loc.y:.1f}", "z": f"{loc.z:.1f}"}
 
 
 def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
     """A left entry whose straight lane reaches the road the ego turns right into: the flow's start and end."""
-    from b2d_data.scenarios.catalog.junctions import walk_back_to_source
-
     for entry in entries_from(lanes, conn.entry, "left"):
         flow = flow_into_exit(lanes, entry, conn.exit, turn="straight")
         if flow is None:
@@ -279,7 +281,7 @@ def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str,
         if end is None or end.is_junction:
             continue
         start = walk_back_to_source(flow.entry, ENTER_FLOW_BACK)
-        return [{"start_actor_flow": _xyz(start), "end_actor_flow": _xyz(end)}]
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(end)}]
     return []
 
 
@@ -289,9 +291,6 @@ BICYCLE_FLOW_BACK = 30.0
 
 def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
     """A bike lane right of an opposite entry that runs straight through the junction: the flow's start and end."""
-    from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
-    from b2d_data.scenarios.catalog.junctions import walk_back_to_source
-
     for entry in entries_from(lanes, conn.entry, "opposite"):
         bike = find_side_lane(entry, "right", LaneType.BIKING)
         if bike is None:
@@ -301,8 +300,108 @@ def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[st
             path = bicycle_path(start, conn.junction_id)
         except ScenarioError:
             continue
-        return [{"start_actor_flow": _xyz(start), "end_actor_flow": _xyz(path[-1])}]
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(path[-1])}]
     return []
+
+
+#: Interurban roads are faster than this (km/h); town streets and boulevards are 30–60.
+INTERURBAN_MIN_LIMIT = 65.0
+
+
+def _interurban_turn(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego leaves a fast road with priority (no stop sign) that goes on straight across the junction."""
+    if town.speed_limit(conn.entry) <= INTERURBAN_MIN_LIMIT:
+        return False
+    keys = {(conn.entry.road_id, conn.entry.lane_id), (conn.start.road_id, conn.start.lane_id)}
+    if keys & _signal_lanes(town.stop_signs()):
+        return False
+    opposite = entries_from(lanes, conn.entry, "opposite")
+    return any(town.speed_limit(e) > INTERURBAN_MIN_LIMIT for e in opposite)
+
+
+def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The opposite entry's straight lane as the flow: source 70 m before the junction, sink 40 m after it."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 70.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"start_actor_flow": _xml_location(source), "end_actor_flow": _xml_location(sink)}]
+    return []
+
+
+def _onto_interurban(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego turns from a side road onto a fast road that runs straight across the junction."""
+    # the limit just after a junction is still the previous road's (speed signs stand a little way in)
+    onto = move_along(conn.exit, 30.0, step=CHECK_STEP)
+    fast = town.speed_limit(onto) if onto is not None else 0.0
+    if not (fast > INTERURBAN_MIN_LIMIT and town.speed_limit(conn.entry) < fast):
+        return False
+    # flow 1 drives along the fast road on both sides of the junction (not into or out of a town street)
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        beyond = move_along(straight.exit, 30.0, step=CHECK_STEP) if straight is not None else None
+        if beyond is not None and min(town.speed_limit(entry), town.speed_limit(beyond)) > INTERURBAN_MIN_LIMIT:
+            return True
+    return False
+
+
+def _interurban_two_flows(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Flow 1 on the left entry's straight lane, 60 m before the junction to 40 m after it (flow 2 runs back on the
+    lanes beside it, into the ego's exit lane)."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 60.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"direction": {"value": "right"}, "start_actor_flow": _xml_location(source),
+                 "end_actor_flow": _xml_location(sink)}]  # fmt: skip
+    return []
+
+
+#: Highways are at least this fast (km/h); CARLA's Town04/06 highways are 90, generated ones 90–100.
+HIGHWAY_MIN_LIMIT = 80.0
+#: Largest heading change (deg) from an on-ramp's entry to the lane it merges into (Town04's curved ramps: ~50).
+MERGE_MAX_ANGLE = 60.0
+#: How far up the on-ramp HighwayCutIn's car waits (m before the merge junction).
+CUT_IN_RAMP_DISTANCE = 60.0
+
+
+def _merge_lane(conn: JunctionLane, lanes: list[JunctionLane]) -> JunctionLane | None:
+    """The connection from another road into the lane right of ``conn``'s exit at a shallow angle (an on-ramp
+    merging beside it, not a side street turning in)."""
+    right = same_direction_driving_neighbour(conn.exit, "right")
+    if right is None:
+        return None
+    for other in lanes:
+        into_right = (other.exit.road_id, other.exit.lane_id) == (right.road_id, right.lane_id)
+        if into_right and abs(other.angle) < MERGE_MAX_ANGLE and other.entry.road_id != conn.entry.road_id:
+            return other
+    return None
+
+
+def _highway_merge(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego drives straight on a highway through a junction where an on-ramp joins the lane on its right."""
+    fast = min(town.speed_limit(conn.entry), town.speed_limit(conn.exit)) >= HIGHWAY_MIN_LIMIT
+    return fast and _merge_lane(conn, lanes) is not None
+
+
+def _cut_in_car(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The cut-in car 60 m up the ramp (less where the ramp is shorter); end_location 10 m past the merge."""
+    merge = _merge_lane(conn, lanes)
+    if merge is None:
+        return []
+    car = walk_back_to_source(merge.entry, CUT_IN_RAMP_DISTANCE, step=2.0)
+    end = move_along(merge.exit, 10.0)
+    if end is None or car.transform.location.distance_2d(merge.entry.transform.location) < 15.0:
+        return []
+    return [{"other_actor_location": _xml_location(car), "end_location": _xml_location(end)}]
 
 
 #: The layout of each implemented scenario type.
@@ -358,6 +457,18 @@ LAYOUTS: dict[str, Layout] = {
         "stop_sign_junction", "an unsignalised junction with a stop sign on the approach where the route turns",
         turns=("left", "right"), signalized=False, stop_sign=True, approach=(28.0, 36.0), departure=(18.0, 26.0),
         trigger_offset=(3.0, 5.0)),
+    "InterurbanActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left off a road faster than 65 km/h, with an "
+        "opposite entry going straight on for 40 m", turns=("left",), signalized=False,
+        junction_extra=_interurban_flow, junction_ok=_interurban_turn),
+    "InterurbanAdvancedActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left from a side road onto a road faster than "
+        "65 km/h, with a left entry going straight on", turns=("left",), signalized=False,
+        junction_extra=_interurban_two_flows, junction_ok=_onto_interurban, departure=(70.0, 85.0)),
+    "HighwayCutIn": Layout(
+        "highway_ramps", "a highway (>= 80 km/h) crossed straight through a junction where an on-ramp joins the lane "
+        "right of the route", turns=("straight",), junction_ok=_highway_merge, junction_extra=_cut_in_car,
+        approach=(50.0, 70.0), departure=(60.0, 80.0), trigger_offset=(0.0, 4.0)),
 }  # fmt: skip
 
 
@@ -476,6 +587,8 @@ def _junction_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Ca
                 continue
             if spec.stop_sign and not keys & stop_lanes:
                 continue
+            if spec.junction_ok is not None and not spec.junction_ok(town, conn, lanes):
+                continue
             if not _stretch_ok(conn.entry, spec.approach[1], False, None):
                 continue
             if not _stretch_ok(conn.exit, spec.departure[1], True, None):
@@ -573,6 +686,16 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 8, 11)),
             "source_dist_interval": {"from": _int(rng, 18, 22), "to": _int(rng, 27, 30)},
+        }
+    if scenario_type == "InterurbanActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 15, 16)),
+            "source_dist_interval": {"from": _int(rng, 42, 53), "to": _int(rng, 78, 98)},
+        }
+    if scenario_type == "InterurbanAdvancedActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 16, 18)),
+            "source_dist_interval": {"from": _int(rng, 36, 42), "to": _int(rng, 84, 94)},
         }
     if scenario_type == "YieldToEmergencyVehicle":
         return {"distance": _value(_int(rng, 26, 30))}

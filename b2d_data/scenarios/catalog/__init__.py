@@ -5,6 +5,8 @@ from b2d_data.scenarios.catalog.crossing_bicycles import CrossingBicycleFlow
 from b2d_data.scenarios.catalog.enter_flow import EnterActorFlow
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane
+from b2d_data.scenarios.catalog.highway import HighwayCutIn
+from b2d_data.scenarios.catalog.interurban import InterurbanActorFlow, InterurbanAdvancedActorFlow
 from b2d_data.scenarios.catalog.junction_turns import (
     NonSignalizedJunctionLeftTurn,
     NonSignalizedJunctionLeftTurnEnterFlow,
@@ -23,8 +25,10 @@ from b2d_data.scenarios.catalog.vanilla_turns import (
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
 
 __all__ = [
-    "Accident", "CrossingBicycleFlow", "DynamicObjectCrossing", "EnterActorFlow", "HardBreakRoute", "HazardAtSideLane", "NonSignalizedJunctionLeftTurn",
-    "NonSignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight", "ParkedObstacleTwoWays", "ParkingExit",
-    "SignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow", "SignalizedJunctionRightTurn",
+    "Accident", "CrossingBicycleFlow", "DynamicObjectCrossing", "EnterActorFlow", "HardBreakRoute", "HazardAtSideLane",
+    "HighwayCutIn", "InterurbanActorFlow", "InterurbanAdvancedActorFlow", "NonSignalizedJunctionLeftTurn",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionRightTurn", "OppositeVehicleRunningRedLight",
+    "ParkedObstacleTwoWays", "ParkingExit", "SignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "SignalizedJunctionRightTurn",
     "VanillaNonSignalizedTurnEncounterStopsign", "VanillaSignalizedTurnEncounterRedLight", "YieldToEmergencyVehicle",
 ]  # fmt: skip

@@ -37,6 +37,9 @@ SCENARIOS: tuple[str, ...] = (
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
+    # issue 12
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
     # issue 13: highway and interurban
     "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow",
     # issue 11: overtaking and give-way

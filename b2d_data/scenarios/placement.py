@@ -23,12 +23,14 @@ from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
 from b2d_data.scenarios.catalog.junctions import walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     connection,
     entries_from,
     find_side_lane,
+    flow_into_exit,
     is_driving,
     is_outermost_driving,
     junction_lanes,
@@ -264,9 +266,55 @@ def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], l
     return check
 
 
+def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """An opposite entry turning right onto the road the ego turns left into."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        if flow_into_exit(lanes, entry, conn.exit) is not None:
+            return [{}]
+    return []
+
+
+#: EnterActorFlow's flow starts this far before the junction (less where an earlier junction is nearer) and ends
+#: this far after it (m), as in Bench2Drive's routes (45-60 m before, 20-25 m after).
+ENTER_FLOW_BACK, ENTER_FLOW_AFTER = 55.0, 22.0
+
+
 def _xml_location(wp: Waypoint) -> dict[str, str]:
     loc = wp.transform.location
     return {"x": f"{loc.x:.1f}", "y": f"{loc.y:.1f}", "z": f"{loc.z:.1f}"}
+
+
+def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A left entry whose straight lane reaches the road the ego turns right into: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        flow = flow_into_exit(lanes, entry, conn.exit, turn="straight")
+        if flow is None:
+            continue
+        end = move_along(flow.exit, ENTER_FLOW_AFTER, step=2.0)
+        if end is None or end.is_junction:
+            continue
+        start = walk_back_to_source(flow.entry, ENTER_FLOW_BACK)
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(end)}]
+    return []
+
+
+#: CrossingBicycleFlow's bicycles start this far before the junction on the bike lane (m).
+BICYCLE_FLOW_BACK = 30.0
+
+
+def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A bike lane right of an opposite entry that runs straight through the junction: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        bike = find_side_lane(entry, "right", LaneType.BIKING)
+        if bike is None:
+            continue
+        start = walk_back_to_source(bike, BICYCLE_FLOW_BACK)
+        try:
+            path = bicycle_path(start, conn.junction_id)
+        except ScenarioError:
+            continue
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(path[-1])}]
+    return []
 
 
 #: Interurban roads are faster than this (km/h); town streets and boulevards are 30–60.
@@ -410,6 +458,25 @@ LAYOUTS: dict[str, Layout] = {
     "SignalizedJunctionLeftTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns left, with an opposite entry going "
         "straight", turns=("left",), signalized=True, junction_extra=_flow_from("opposite")),
+    "NonSignalizedJunctionLeftTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=False, junction_extra=_flow_from("opposite")),
+    "SignalizedJunctionLeftTurnEnterFlow": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry turning "
+        "right into the same road", turns=("left",), signalized=True, junction_extra=_flow_into_ego_exit),
+    "NonSignalizedJunctionLeftTurnEnterFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry "
+        "turning right into the same road", turns=("left",), signalized=False, junction_extra=_flow_into_ego_exit),
+    "EnterActorFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
+        "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
+        junction_extra=_enter_flow),
+    "CrossingBicycleFlow": Layout(
+        "bike_lane", "a junction where the route turns left across an opposite bike lane that continues straight "
+        "through it", turns=("left",), junction_extra=_bicycle_flow),
+    "SignalizedJunctionRightTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
     "NonSignalizedJunctionRightTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=False, junction_extra=_flow_from("left")),
@@ -643,6 +710,36 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 9, 10)),
             "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 28)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurn":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "SignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 17, 19), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "EnterActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 12, 14)),
+            "source_dist_interval": {"from": _int(rng, 25, 30), "to": _int(rng, 33, 39)},
+        }
+    if scenario_type == "CrossingBicycleFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 9)),
+            "source_dist_interval": {"from": _int(rng, 13, 15), "to": _int(rng, 25, 30)},
+        }
+    if scenario_type == "SignalizedJunctionRightTurn":
+        return {
+            "flow_speed": _value(_int(rng, 10, 12)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 28, 38)},
         }
     if scenario_type == "NonSignalizedJunctionRightTurn":
         return {

@@ -21,6 +21,7 @@ from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioContext, Scenari
 from b2d_data.scenarios.placement import make_routes
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_runner import RouteRunner
+from b2d_data.sim import blueprints
 from b2d_data.sim.api import ActorKind, ActorSpec, TrafficLightState
 from b2d_data.sim.builtin.world import BuiltinSimulator
 
@@ -31,10 +32,21 @@ TYPES = (
     "ParkingExit",
     "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays", "HazardAtSideLaneTwoWays",
     "VehicleOpensDoorTwoWays", "InvadingTurn",
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn",
+    "SignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow",
+    "CrossingBicycleFlow",
 )  # fmt: skip
 OBSTACLES = ("Accident", "ParkedObstacleTwoWays", "HazardAtSideLane", "ParkedObstacle", "AccidentTwoWays",
              "ConstructionObstacle", "ConstructionObstacleTwoWays", "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays",
              "InvadingTurn")  # fmt: skip
+#: Scenarios whose flow of vehicles crosses the route's junction.
+FLOWS = (
+    "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn", "NonSignalizedJunctionLeftTurn",
+    "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionLeftTurnEnterFlow",
+    "EnterActorFlow", "CrossingBicycleFlow",
+)  # fmt: skip
+#: Scenarios whose flow drives into the road the ego leaves the junction on.
+INTO_EGO_EXIT = ("SignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow")
 
 
 @pytest.fixture(scope="module")
@@ -57,6 +69,8 @@ class Trace:
     ego_light_states: list = field(default_factory=list)
     leftover: int = 0
     ticks: int = 0
+    #: (type_id, road_id, lane_type, in a junction) of the scenario vehicles, sampled every 5 ticks
+    scenario_places: set = field(default_factory=set)
 
 
 def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600, on_tick=None) -> Trace:
@@ -97,6 +111,9 @@ def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600, on_tick
                 if a.role_name == SCENARIO_ROLE:
                     (trace.scenario_walkers if a.kind is ActorKind.WALKER else trace.scenario_vehicles).add(a.id)
                     trace.max_scenario_speed = max(trace.max_scenario_speed, a.speed())
+                    if a.kind is ActorKind.VEHICLE and tick % 5 == 0:
+                        wp = town.get_waypoint(a.location, lane_type=LaneType.DRIVING | LaneType.BIKING)
+                        trace.scenario_places.add((a.type_id, wp.road_id, wp.lane_type, wp.is_junction))
             lights = [i for i in snap.traffic_lights.values()
                       if any(w.road_id == dense.waypoints[index].road_id for w in i.stop_waypoints)]  # fmt: skip
             trace.ego_light_states.append(tuple(sorted(i.state for i in lights)))
@@ -111,7 +128,8 @@ def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600, on_tick
 @pytest.mark.parametrize("scenario_type", TYPES)
 def test_scenario_runs_to_its_end_with_a_scripted_ego(town, scenario_type):
     route = make_routes(town, scenario_type, 1, seed=0)[0]
-    trace = run_scripted(town, route)
+    # slower through the merges, so that the flow (not pre-populated) reaches the exit road before the ego left
+    trace = run_scripted(town, route, speed=3.0 if scenario_type in INTO_EGO_EXIT else 8.0)
     assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS], trace.statuses
     assert trace.leftover == 0  # cleanup removed every scenario actor
     assert trace.hints_valid
@@ -129,8 +147,20 @@ def test_scenario_runs_to_its_end_with_a_scripted_ego(town, scenario_type):
         assert len(trace.scenario_walkers) == 1
     if scenario_type == "OppositeVehicleRunningRedLight":
         assert trace.max_scenario_speed == pytest.approx(60 / 3.6, abs=0.3)
-    if scenario_type in ("SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn"):
+    if scenario_type in FLOWS:
         assert len(trace.scenario_vehicles) >= 3  # a flow
+        assert any(in_junction for *_, in_junction in trace.scenario_places)  # that crosses the junction
+    if scenario_type in INTO_EGO_EXIT:
+        dense = DenseRoute.from_route(town, route)
+        inside = next(k for k, wp in enumerate(dense.waypoints) if wp.is_junction)
+        exit_road = next(wp.road_id for wp in dense.waypoints[inside:] if not wp.is_junction)
+        assert exit_road in {road for _, road, _, in_junction in trace.scenario_places if not in_junction}
+    if scenario_type == "CrossingBicycleFlow":
+        # bicycles (CARLA's bicycle blueprints, with their riders), riding the bike lane through the junction
+        assert {blueprints.find(t).base_type for t, *_ in trace.scenario_places} == {"bicycle"}
+        assert any(
+            lane_type & LaneType.BIKING and in_junction for _, _, lane_type, in_junction in trace.scenario_places
+        )
     if scenario_type == "VanillaSignalizedTurnEncounterRedLight":
         seen = [s for s in trace.ego_light_states if s]
         assert (TrafficLightState.RED,) in seen and any(TrafficLightState.GREEN in s for s in seen)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,7 +56,8 @@ class ActorFlow:
 
     ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``.
     ``lateral_offset`` (m, right positive) makes the lane-following vehicles drive beside the lane centre;
-    ``lateral_margin`` widens their swept path when they look for vehicles to stop for.
+    ``lateral_margin`` widens their swept path when they look for vehicles to stop for; ``blueprint_ids`` replaces
+    the background cars the vehicles are drawn from (e.g. bicycles for a BicycleFlow).
     """
 
     def __init__(
@@ -70,6 +72,7 @@ class ActorFlow:
         initial_actors: bool = False,
         lateral_offset: float = 0.0,
         lateral_margin: float = 0.3,
+        blueprint_ids: Sequence[str] | None = None,
     ) -> None:
         if len(path) < 2:
             raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
@@ -84,7 +87,9 @@ class ActorFlow:
         self.lateral_offset = float(lateral_offset)
         self.lateral_margin = float(lateral_margin)
         self.vehicles: list[_FlowVehicle] = []
-        self._cars = blueprints.background_car_ids()
+        self._cars = list(blueprint_ids) if blueprint_ids is not None else blueprints.background_car_ids()
+        if not self._cars:
+            raise ScenarioSetupError("an actor flow needs at least one blueprint to draw its vehicles from")
         self._gap = self._draw_gap()
         self._last_spawned: int | None = None
         self._initial = initial_actors

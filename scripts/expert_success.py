@@ -31,17 +31,24 @@ from b2d_data.collection.plan import RouteTask, route_seed
 from b2d_data.collection.runner import run_tasks
 from b2d_data.collection.towns import TownSource, load_map, xodr_in_folder
 
-#: The twelve scenario types of issue 4.
+#: The twelve scenario types of issue 4, then those of issues 12, 13, 11 and 14.
 SCENARIOS: tuple[str, ...] = (
     "Accident", "ParkedObstacleTwoWays", "HazardAtSideLane", "HardBreakRoute", "DynamicObjectCrossing",
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
-)  # fmt: skip
-# Issue 14 (emergency brakes, cut-ins, pedestrians, remaining sign scenarios, plain routes).
-SCENARIOS += (
+    # issue 12
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
+    # issue 13: highway and interurban
+    "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow",
+    # issue 11: overtaking and give-way
+    "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays",
+    "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays", "InvadingTurn",
+    # issue 14: emergency brakes, cut-ins, pedestrians, the remaining sign scenarios, plain routes
     "NoScenario", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight", "T_Junction",
-    "OppositeVehicleTakingPriority",
+    "OppositeVehicleTakingPriority", "ParkingCrossingPedestrian", "ControlLoss", "BlockedIntersection",
+    "PedestrianCrossing", "VehicleTurningRoutePedestrian", "VehicleTurningRoute", "ParkingCutIn", "StaticCutIn",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -61,14 +68,28 @@ def generated_tasks(
         routes = []
         usable = list(presets)
         remaining = per_scenario
+        placed: list[str] = []
         while remaining > 0 and usable:
             share = -(-remaining // len(usable))  # ceil: the first presets take the remainder
             p = usable.pop(0)
             try:
                 routes += [(p, r) for r in placement.make_routes(maps[p], scenario, share, seed)]
                 remaining -= share
+                placed.append(p)
             except placement.PlacementError as exc:
                 logging.getLogger(__name__).info("%s on %s: %s", scenario, p, exc)
+                errors[scenario] = str(exc)
+        if remaining > 0 and placed:
+            # presets without the layout leave their share to the first one that has it (its first routes are
+            # the same for any count, so the others' seeded routes do not move)
+            p = placed[0]
+            have = sum(1 for q, _ in routes if q == p)
+            try:
+                more = placement.make_routes(maps[p], scenario, have + remaining, seed)[have:]
+                routes += [(p, r) for r in more]
+                remaining -= len(more)
+                errors.pop(scenario, None)
+            except placement.PlacementError as exc:
                 errors[scenario] = str(exc)
         if remaining > 0:
             errors[scenario] = f"only {per_scenario - remaining} of {per_scenario} routes could be placed"

@@ -93,7 +93,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     what.add_argument("--seed", type=int, default=0, help="seed of the route list and of every route (default 0)")
     how = p.add_argument_group("how")
-    how.add_argument("--workers", type=int, default=1, help="routes run in parallel processes (default 1)")
+    how.add_argument(
+        "--workers",
+        type=_workers_arg,
+        default="auto",
+        help="routes run in parallel processes, or auto (default): one per core with a GPU, else 1 with encoders",
+    )
     how.add_argument(
         "--encode-workers",
         type=int,
@@ -136,15 +141,37 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _workers_arg(value: str) -> int | str:
+    if value == "auto":
+        return value
+    try:
+        return int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or auto, got {value!r}") from None
+
+
+def _layout(args: argparse.Namespace) -> tuple[int, int | None]:
+    """(route processes, encoder processes per route) from --workers / --encode-workers, resolving auto."""
+    if args.workers != "auto":
+        return args.workers, args.encode_workers
+    if args.ray is not None:  # the cluster's CPUs decide; Ray tasks encode inline
+        return 1, args.encode_workers
+    from b2d_data.collection.layout import auto_layout
+
+    layout = auto_layout()
+    return layout.workers, args.encode_workers if args.encode_workers is not None else layout.encode_workers
+
+
 def _config(args: argparse.Namespace):
     from b2d_data.collection.job import CollectConfig
 
+    workers, encode_workers = _layout(args)
     return CollectConfig(
         out=args.out, scenarios=tuple(args.scenario), n=args.n, town=args.town, xodr=args.xodr,
-        routes_file=args.routes, weathers=tuple(args.weather), workers=args.workers, seed=args.seed,
+        routes_file=args.routes, weathers=tuple(args.weather), workers=workers, seed=args.seed,
         resume=args.resume, keep_failed=args.keep_failed, width=args.width, height=args.height,
         lidar_azimuth_steps=args.lidar_azimuth_steps, format_version=FormatVersion(args.format_version),
-        sensors=not args.no_sensors, encode_workers=args.encode_workers,
+        sensors=not args.no_sensors, encode_workers=encode_workers,
         attempts_per_clip=args.attempts_per_clip, ray_address=args.ray,
     )  # fmt: skip
 

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 
 from b2d_data.codecs._source import Source, read_source, write_bytes
+from b2d_data.codecs.jpeg_gpu import nvjpeg_encoder
 from b2d_data.format.errors import B2DFormatError
 
 #: Bench2Drive's collector writes every camera image at this JPEG quality; nothing else is changed.
@@ -27,7 +28,20 @@ def _check_rgb(rgb: np.ndarray) -> None:
 
 
 def encode_jpeg(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
-    """Encode an (H, W, 3) uint8 RGB image as OpenCV does in Bench2Drive (BGR, quality 20, defaults)."""
+    """Encode an (H, W, 3) uint8 RGB image as OpenCV does in Bench2Drive (quality 20, 4:2:0, baseline).
+
+    On a machine with an NVIDIA GPU the image is encoded by nvJPEG (``jpeg_gpu``: same quantisation tables and
+    subsampling, decoded within codec noise of OpenCV's file); ``B2D_JPEG_ENCODER=opencv`` keeps it on the CPU.
+    """
+    _check_rgb(rgb)
+    gpu = nvjpeg_encoder(int(quality))
+    if gpu is not None:
+        return gpu.encode(rgb)
+    return encode_jpeg_opencv(rgb, quality)
+
+
+def encode_jpeg_opencv(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
+    """Encode with OpenCV on the CPU (BGR, the given quality, OpenCV's defaults otherwise)."""
     _check_rgb(rgb)
     bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
     ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])

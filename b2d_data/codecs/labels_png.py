@@ -3,7 +3,8 @@
 Semantic: 1-channel uint8 PNG of CARLA tag ids. Instance: OpenCV writes the BGRA array
 (B = id high byte, G = id low byte, R = semantic tag, A = 255), so the file is an RGBA PNG (colour type 6)
 whose R, G, B, A samples are tag, id low, id high, 255. ``cv2.IMREAD_UNCHANGED`` returns it as BGRA, PIL as
-RGBA; ``split_instance`` takes either order. Both use OpenCV's default PNG parameters (fast on label images).
+RGBA; ``split_instance`` takes either order. Both are encoded by ``png.encode_png`` (same pixels as OpenCV's
+encoder wrote, several times faster).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import cv2
 import numpy as np
 
 from b2d_data.codecs._source import Source, read_source, write_bytes
+from b2d_data.codecs.png import encode_png
 from b2d_data.format.errors import B2DFormatError
 
 ChannelOrder = Literal["BGRA", "RGBA", "BGR", "RGB"]
@@ -44,10 +46,7 @@ def encode_semantic_png(tags: np.ndarray) -> bytes:
     _check_2d(tags, "semantic tags")
     if tags.dtype != np.uint8:
         raise ValueError(f"semantic tags must be uint8, got {tags.dtype}")
-    ok, buf = cv2.imencode(".png", tags)
-    if not ok:
-        raise ValueError(f"OpenCV could not encode a {tags.shape} semantic image as PNG")
-    return buf.tobytes()
+    return encode_png(tags)
 
 
 def write_semantic_png(path: str | os.PathLike[str], tags: np.ndarray) -> int:
@@ -63,8 +62,8 @@ def read_semantic_png(source: Source, *, name: str | os.PathLike[str] | None = N
     return img
 
 
-def instance_bgra(tags: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """The (H, W, 4) uint8 BGRA array the collector hands to OpenCV: B = id >> 8, G = id & 255, R = tag, A = 255."""
+def _instance_pixels(tags: np.ndarray, ids: np.ndarray, order: tuple[int, int, int, int]) -> np.ndarray:
+    """(H, W, 4) uint8 of tag, id low byte, id high byte and 255, placed in the output channels ``order``."""
     _check_2d(tags, "instance tags")
     _check_2d(ids, "instance ids")
     if tags.shape != ids.shape:
@@ -77,17 +76,28 @@ def instance_bgra(tags: np.ndarray, ids: np.ndarray) -> np.ndarray:
         if ids.size and (ids.min() < 0 or ids.max() > 0xFFFF):
             raise ValueError("instance ids must lie in [0, 65535] (two bytes on disk)")
         ids = ids.astype(np.uint16)
-    high = (ids >> 8).astype(np.uint8)
-    low = (ids & 0xFF).astype(np.uint8)
-    return cv2.merge([high, low, np.ascontiguousarray(tags), np.full_like(tags, 255)])  # 3× faster than numpy
+    id_bytes = np.ascontiguousarray(ids, dtype="<u2").view(np.uint8).reshape(ids.shape + (2,))  # low, high
+    out = np.empty(tags.shape + (4,), np.uint8)
+    tag, low, high, alpha = order
+    # One pass of OpenCV's channel shuffle: ~5x faster than shifting and merging the planes.
+    cv2.mixChannels([np.ascontiguousarray(tags), id_bytes, np.full_like(tags, 255)], [out],
+                    [0, tag, 1, low, 2, high, 3, alpha])  # fmt: skip
+    return out
+
+
+def instance_bgra(tags: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """The (H, W, 4) uint8 BGRA array the collector hands to OpenCV: B = id >> 8, G = id & 255, R = tag, A = 255."""
+    return _instance_pixels(tags, ids, (2, 1, 0, 3))
+
+
+def instance_rgba(tags: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """The instance image in file order (R = tag, G = id & 255, B = id >> 8, A = 255), as PIL decodes it."""
+    return _instance_pixels(tags, ids, (0, 1, 2, 3))
 
 
 def encode_instance_png(tags: np.ndarray, ids: np.ndarray) -> bytes:
     """Encode semantic tags (uint8) and instance ids (uint16) as Bench2Drive's RGBA instance PNG."""
-    ok, buf = cv2.imencode(".png", instance_bgra(tags, ids))
-    if not ok:
-        raise ValueError(f"OpenCV could not encode a {tags.shape} instance image as PNG")
-    return buf.tobytes()
+    return encode_png(instance_rgba(tags, ids))
 
 
 def write_instance_png(path: str | os.PathLike[str], tags: np.ndarray, ids: np.ndarray) -> int:

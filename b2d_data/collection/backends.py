@@ -28,6 +28,7 @@ from b2d_data.collection.job import (
     run_route_job,
     shutdown_encoders,
 )
+from b2d_data.collection.layout import single_thread_environment, single_thread_worker
 from b2d_data.collection.plan import CollectError, RouteTask
 from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
@@ -59,8 +60,12 @@ class Backend(Protocol):
         ...
 
 
+#: ``JobResult.note`` of an attempt that ended because its worker died or was lost, not because of the route.
+WORKER_LOST = "worker lost"
+
+
 def error_result(task: RouteTask, reason: str) -> JobResult:
-    """The result of a task whose worker died or could not be reached."""
+    """The result of a task whose worker died or could not be reached (noted ``WORKER_LOST``)."""
     now = datetime.now(timezone.utc).isoformat(timespec="milliseconds")
     return JobResult(
         route_id=str(task.route.id),
@@ -72,6 +77,7 @@ def error_result(task: RouteTask, reason: str) -> JobResult:
         reason=reason,
         started=now,
         finished=now,
+        note=WORKER_LOST,
     )
 
 
@@ -117,6 +123,7 @@ def _worker_init(log_level: int, driver_pid: int, reports: Any) -> None:
     driver and stop cleanly on its SIGTERM, quiet logging, frame reports into the driver's queue."""
     exit_with_parent(driver_pid)
     ignore_interrupts()
+    single_thread_worker()
     # An exit through the interpreter (not the default SIGTERM death) releases the worker's semaphores and shared
     # memory; otherwise the resource tracker reports them as leaked.
     signal.signal(signal.SIGTERM, _leave)
@@ -142,6 +149,7 @@ class ProcessPoolBackend:
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
+        single_thread_environment()  # before the pool starts its processes
         return ProcessPoolExecutor(
             self.capacity,
             mp_context=self._context,

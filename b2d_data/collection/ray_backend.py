@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from b2d_data.collection.job import CollectConfig, JobResult, run_route_job
+from b2d_data.collection.layout import single_thread_worker
 from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
 log = logging.getLogger(__name__)
@@ -51,6 +52,7 @@ class FrameBoard:
 def route_job_reporting_to(board: Any, *args: Any) -> JobResult:
     """:func:`run_route_job` in a Ray task, its frame reports sent (fire and forget) to the ``board`` actor."""
     set_frame_sink(lambda report: board.report.remote(report))
+    single_thread_worker()  # a task holds one CPU of its node (Ray caps the BLAS pools the same way)
     try:
         return run_route_job(*args)
     finally:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from b2d_data.collection import run_log as rl
-from b2d_data.collection.backends import Backend, make_backend
+from b2d_data.collection.backends import WORKER_LOST, Backend, make_backend
 from b2d_data.collection.corpus import (
     ResumeReport,
     check_settings,
@@ -29,6 +29,7 @@ from b2d_data.collection.corpus import (
     reconcile,
     record_discarded,
     record_interrupted,
+    remove_temporaries,
 )
 from b2d_data.collection.job import (
     STATUS_CLIP,
@@ -60,6 +61,8 @@ from b2d_data.collection.towns import (
 log = logging.getLogger(__name__)
 
 SUMMARY_FILE = "summary.json"
+#: Times a route whose worker died (killed, node lost) is run again in the same session before it counts as tried.
+LOST_WORKER_RETRIES = 2
 
 
 @dataclass
@@ -215,6 +218,8 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
             log.info("%s", resumed.describe())
         session = _Session(plan, out, config, run_log, records, progress, resumed)
         attempts, clips = session.run()
+        if session.retries:  # what the lost workers were writing
+            remove_temporaries(out)
         summary = CollectSummary(
             str(out),
             summarise(plan, records, out, config.sensors),
@@ -270,6 +275,7 @@ class _Session:
         self.target = {sp.scenario: sp.target for sp in plan.scenarios}
         self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
+        self.retries: Counter[str] = Counter()
         self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
         mine = set().union(*ids_of.values()) if ids_of else set()
         self.state.finished_frames = [
@@ -340,6 +346,7 @@ class _Session:
                     record = result.to_record()
                     self.run_log.append(record)
                     self.records.append(record)
+                    self._retry_if_lost(task, result)
                     self.state.route_finished(task.route.id, frames_of(result.ticks, result.frames),
                                               result.status == STATUS_CLIP)  # fmt: skip
                     self.state.clips = self._clips()
@@ -357,6 +364,15 @@ class _Session:
             if not abandon:
                 backend.close()
         return attempts, clips
+
+    def _retry_if_lost(self, task: RouteTask, result: JobResult) -> None:
+        """Queue a route again (first in its scenario's line) when its worker died under it."""
+        route_id = str(task.route.id)
+        if result.note != WORKER_LOST or self.retries[route_id] >= LOST_WORKER_RETRIES:
+            return
+        self.retries[route_id] += 1
+        self.pending[task.scenario].appendleft(task)
+        log.warning("route %s: its worker was lost (%s); running it again", route_id, result.reason)
 
     def _launch(self, backend: Backend, task: RouteTask) -> None:
         start = {"event": rl.EVENT_START, "route_id": str(task.route.id), "scenario": task.scenario,

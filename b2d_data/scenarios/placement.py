@@ -23,11 +23,14 @@ from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
+from b2d_data.scenarios.catalog.junctions import walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     connection,
     entries_from,
     find_side_lane,
+    flow_into_exit,
     is_driving,
     is_outermost_driving,
     junction_lanes,
@@ -151,6 +154,8 @@ class Layout:
     departure: tuple[float, float] = (22.0, 30.0)
     trigger_offset: tuple[float, float] = (2.0, 8.0)
     junction_extra: Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]] | None = None
+    #: Junction layouts: a further check of the connection in its town (e.g. an interurban road's speed limit).
+    junction_ok: Callable[[Map, JunctionLane, list[JunctionLane]], bool] | None = None
 
     @property
     def is_junction(self) -> bool:
@@ -204,6 +209,19 @@ def _opposite_flow_room(town: Map, wp: Waypoint) -> bool:
         return False
     reach = 1.5 * town.speed_limit(obstacle) + 30.0
     return bool(opposite.previous(reach)) and bool(opposite.next(reach))
+
+
+def _door_side_lane(town: Map, wp: Waypoint) -> bool:
+    """A parking lane (or wide shoulder) on the right where the car may stand (37–59 m after the trigger), and room
+    for the opposite flow around it."""
+    from b2d_data.scenarios.catalog.vehicle_opens_door import side_lane
+
+    ahead: Waypoint | None = move_along(wp, 37.0, step=37.0)
+    for _ in range(4):
+        if ahead is None or side_lane(ahead, "right") is None:
+            return False
+        ahead = move_along(ahead, 7.0, step=7.0)
+    return _opposite_flow_room(town, wp)
 
 
 def _sidewalk_ahead(town: Map, wp: Waypoint) -> bool:
@@ -284,6 +302,157 @@ def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], l
     return check
 
 
+def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """An opposite entry turning right onto the road the ego turns left into."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        if flow_into_exit(lanes, entry, conn.exit) is not None:
+            return [{}]
+    return []
+
+
+#: EnterActorFlow's flow starts this far before the junction (less where an earlier junction is nearer) and ends
+#: this far after it (m), as in Bench2Drive's routes (45-60 m before, 20-25 m after).
+ENTER_FLOW_BACK, ENTER_FLOW_AFTER = 55.0, 22.0
+
+
+def _xml_location(wp: Waypoint) -> dict[str, str]:
+    loc = wp.transform.location
+    return {"x": f"{loc.x:.1f}", "y": f"{loc.y:.1f}", "z": f"{loc.z:.1f}"}
+
+
+def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A left entry whose straight lane reaches the road the ego turns right into: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        flow = flow_into_exit(lanes, entry, conn.exit, turn="straight")
+        if flow is None:
+            continue
+        end = move_along(flow.exit, ENTER_FLOW_AFTER, step=2.0)
+        if end is None or end.is_junction:
+            continue
+        start = walk_back_to_source(flow.entry, ENTER_FLOW_BACK)
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(end)}]
+    return []
+
+
+#: CrossingBicycleFlow's bicycles start this far before the junction on the bike lane (m).
+BICYCLE_FLOW_BACK = 30.0
+
+
+def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A bike lane right of an opposite entry that runs straight through the junction: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        bike = find_side_lane(entry, "right", LaneType.BIKING)
+        if bike is None:
+            continue
+        start = walk_back_to_source(bike, BICYCLE_FLOW_BACK)
+        try:
+            path = bicycle_path(start, conn.junction_id)
+        except ScenarioError:
+            continue
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(path[-1])}]
+    return []
+
+
+#: Interurban roads are faster than this (km/h); town streets and boulevards are 30–60.
+INTERURBAN_MIN_LIMIT = 65.0
+
+
+def _interurban_turn(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego leaves a fast road with priority (no stop sign) that goes on straight across the junction."""
+    if town.speed_limit(conn.entry) <= INTERURBAN_MIN_LIMIT:
+        return False
+    keys = {(conn.entry.road_id, conn.entry.lane_id), (conn.start.road_id, conn.start.lane_id)}
+    if keys & _signal_lanes(town.stop_signs()):
+        return False
+    opposite = entries_from(lanes, conn.entry, "opposite")
+    return any(town.speed_limit(e) > INTERURBAN_MIN_LIMIT for e in opposite)
+
+
+def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The opposite entry's straight lane as the flow: source 70 m before the junction, sink 40 m after it."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 70.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"start_actor_flow": _xml_location(source), "end_actor_flow": _xml_location(sink)}]
+    return []
+
+
+def _onto_interurban(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego turns from a side road onto a fast road that runs straight across the junction."""
+    # the limit just after a junction is still the previous road's (speed signs stand a little way in)
+    onto = move_along(conn.exit, 30.0, step=CHECK_STEP)
+    fast = town.speed_limit(onto) if onto is not None else 0.0
+    if not (fast > INTERURBAN_MIN_LIMIT and town.speed_limit(conn.entry) < fast):
+        return False
+    # flow 1 drives along the fast road on both sides of the junction (not into or out of a town street)
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        beyond = move_along(straight.exit, 30.0, step=CHECK_STEP) if straight is not None else None
+        if beyond is not None and min(town.speed_limit(entry), town.speed_limit(beyond)) > INTERURBAN_MIN_LIMIT:
+            return True
+    return False
+
+
+def _interurban_two_flows(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Flow 1 on the left entry's straight lane, 60 m before the junction to 40 m after it (flow 2 runs back on the
+    lanes beside it, into the ego's exit lane)."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 60.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"direction": {"value": "right"}, "start_actor_flow": _xml_location(source),
+                 "end_actor_flow": _xml_location(sink)}]  # fmt: skip
+    return []
+
+
+#: Highways are at least this fast (km/h); CARLA's Town04/06 highways are 90, generated ones 90–100.
+HIGHWAY_MIN_LIMIT = 80.0
+#: Largest heading change (deg) from an on-ramp's entry to the lane it merges into (Town04's curved ramps: ~50).
+MERGE_MAX_ANGLE = 60.0
+#: How far up the on-ramp HighwayCutIn's car waits (m before the merge junction).
+CUT_IN_RAMP_DISTANCE = 60.0
+
+
+def _merge_lane(conn: JunctionLane, lanes: list[JunctionLane]) -> JunctionLane | None:
+    """The connection from another road into the lane right of ``conn``'s exit at a shallow angle (an on-ramp
+    merging beside it, not a side street turning in)."""
+    right = same_direction_driving_neighbour(conn.exit, "right")
+    if right is None:
+        return None
+    for other in lanes:
+        into_right = (other.exit.road_id, other.exit.lane_id) == (right.road_id, right.lane_id)
+        if into_right and abs(other.angle) < MERGE_MAX_ANGLE and other.entry.road_id != conn.entry.road_id:
+            return other
+    return None
+
+
+def _highway_merge(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego drives straight on a highway through a junction where an on-ramp joins the lane on its right."""
+    fast = min(town.speed_limit(conn.entry), town.speed_limit(conn.exit)) >= HIGHWAY_MIN_LIMIT
+    return fast and _merge_lane(conn, lanes) is not None
+
+
+def _cut_in_car(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The cut-in car 60 m up the ramp (less where the ramp is shorter); end_location 10 m past the merge."""
+    merge = _merge_lane(conn, lanes)
+    if merge is None:
+        return []
+    car = walk_back_to_source(merge.entry, CUT_IN_RAMP_DISTANCE, step=2.0)
+    end = move_along(merge.exit, 10.0)
+    if end is None or car.transform.location.distance_2d(merge.entry.transform.location) < 15.0:
+        return []
+    return [{"other_actor_location": _xml_location(car), "end_location": _xml_location(end)}]
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -293,6 +462,13 @@ LAYOUTS: dict[str, Layout] = {
                                     extra=_opposite_flow_room, max_turn=STRAIGHTISH),
     "HazardAtSideLane": Layout("multi_lane", "two same-direction lanes (ego on the right one), 130 m junction-free",
                                _multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH),
+    "HazardAtSideLaneTwoWays": Layout("two_way_street", "one lane each way, 130 m junction-free",
+                                      _two_way_single, clear_after=130.0, max_turn=STRAIGHTISH),
+    "VehicleOpensDoorTwoWays": Layout("parking_lane", "one lane each way with a parking lane (or a shoulder of "
+                                      "2 m) on the right 37–59 m ahead, 115 m junction-free", _two_way_single,
+                                      clear_after=115.0, extra=_door_side_lane, max_turn=STRAIGHTISH),
+    "InvadingTurn": Layout("two_way_street", "one lane each way, 100 m junction-free", _two_way_single,
+                           clear_after=100.0),
     "HardBreakRoute": Layout("road", "any driving lane, 60 m junction-free", _any_lane, clear_after=60.0),
     "DynamicObjectCrossing": Layout("sidewalk", "rightmost lane with a sidewalk on the right, 110 m junction-free",
                                     _rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH),
@@ -300,6 +476,16 @@ LAYOUTS: dict[str, Layout] = {
     "YieldToEmergencyVehicle": Layout("multi_lane", "two same-direction lanes, 35 m behind and 200 m ahead "
                                       "junction-free", _multi_lane_any, clear_before=35.0, clear_after=200.0,
                                       max_turn=STRAIGHTISH, length=230.0),
+    "ParkedObstacle": Layout("multi_lane", "two same-direction lanes, 100 m junction-free and straight-ish",
+                             _multi_lane_left, clear_after=100.0, max_turn=STRAIGHTISH),
+    "ConstructionObstacle": Layout("multi_lane", "two same-direction lanes, 110 m junction-free and straight-ish",
+                                   _multi_lane_left, clear_after=110.0, max_turn=STRAIGHTISH),
+    "AccidentTwoWays": Layout("two_way_street", "one lane each way, 120 m junction-free, opposite lane continuing "
+                              "~105 m around the obstacle", _two_way_single, clear_after=120.0,
+                              extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+    "ConstructionObstacleTwoWays": Layout("two_way_street", "one lane each way, 110 m junction-free, opposite lane "
+                                          "continuing ~105 m around the obstacle", _two_way_single,
+                                          clear_after=110.0, extra=_opposite_flow_room, max_turn=STRAIGHTISH),
     "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane, 40 m junction-free", _any_lane,
                           clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot),
     "OppositeVehicleRunningRedLight": Layout(
@@ -308,6 +494,25 @@ LAYOUTS: dict[str, Layout] = {
     "SignalizedJunctionLeftTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns left, with an opposite entry going "
         "straight", turns=("left",), signalized=True, junction_extra=_flow_from("opposite")),
+    "NonSignalizedJunctionLeftTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=False, junction_extra=_flow_from("opposite")),
+    "SignalizedJunctionLeftTurnEnterFlow": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry turning "
+        "right into the same road", turns=("left",), signalized=True, junction_extra=_flow_into_ego_exit),
+    "NonSignalizedJunctionLeftTurnEnterFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry "
+        "turning right into the same road", turns=("left",), signalized=False, junction_extra=_flow_into_ego_exit),
+    "EnterActorFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
+        "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
+        junction_extra=_enter_flow),
+    "CrossingBicycleFlow": Layout(
+        "bike_lane", "a junction where the route turns left across an opposite bike lane that continues straight "
+        "through it", turns=("left",), junction_extra=_bicycle_flow),
+    "SignalizedJunctionRightTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
     "NonSignalizedJunctionRightTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=False, junction_extra=_flow_from("left")),
@@ -355,6 +560,18 @@ LAYOUTS: dict[str, Layout] = {
     NO_SCENARIO: Layout(
         "junction", "a junction the route crosses", turns=("left", "right", "straight"), approach=(30.0, 40.0),
         departure=(30.0, 40.0)),
+    "InterurbanActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left off a road faster than 65 km/h, with an "
+        "opposite entry going straight on for 40 m", turns=("left",), signalized=False,
+        junction_extra=_interurban_flow, junction_ok=_interurban_turn),
+    "InterurbanAdvancedActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left from a side road onto a road faster than "
+        "65 km/h, with a left entry going straight on", turns=("left",), signalized=False,
+        junction_extra=_interurban_two_flows, junction_ok=_onto_interurban, departure=(70.0, 85.0)),
+    "HighwayCutIn": Layout(
+        "highway_ramps", "a highway (>= 80 km/h) crossed straight through a junction where an on-ramp joins the lane "
+        "right of the route", turns=("straight",), junction_ok=_highway_merge, junction_extra=_cut_in_car,
+        approach=(50.0, 70.0), departure=(60.0, 80.0), trigger_offset=(0.0, 4.0)),
 }  # fmt: skip
 
 
@@ -474,6 +691,8 @@ def _junction_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Ca
                 continue
             if spec.stop_sign and not keys & stop_lanes:
                 continue
+            if spec.junction_ok is not None and not spec.junction_ok(town, conn, lanes):
+                continue
             if not _stretch_ok(conn.entry, spec.approach[1], False, None):
                 continue
             if not _stretch_ok(conn.exit, spec.departure[1], True, None):
@@ -515,6 +734,20 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "distance": _value(_int(rng, 40, 44)),
             "frequency": {"from": _int(rng, 31, 56), "to": _int(rng, 106, 151)},
         }
+    if scenario_type == "ParkedObstacle":
+        return {"distance": _value(_int(rng, 40, 43)), "direction": _value("right"), "speed": _value(_int(rng, 40, 59))}
+    if scenario_type == "ConstructionObstacle":
+        return {"distance": _value(_int(rng, 40, 45)), "direction": _value("right"), "speed": _value(_int(rng, 47, 55))}
+    if scenario_type == "AccidentTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 44)),
+            "frequency": {"from": _int(rng, 32, 63), "to": _int(rng, 109, 184)},
+        }
+    if scenario_type == "ConstructionObstacleTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 45)),
+            "frequency": {"from": _int(rng, 43, 70), "to": _int(rng, 129, 200)},
+        }
     if scenario_type == "HazardAtSideLane":
         return {
             "distance": _value(_int(rng, 41, 45)),
@@ -522,6 +755,21 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "bicycle_drive_distance": _value(_int(rng, 40, 101)),
             "bicycle_speed": _value(_int(rng, 6, 12)),
         }
+    if scenario_type == "HazardAtSideLaneTwoWays":
+        return {
+            "distance": _value(_int(rng, 41, 45)),
+            "frequency": _value(_int(rng, 75, 100)),
+            "bicycle_drive_distance": _value(_int(rng, 80, 116)),
+            "bicycle_speed": _value(_int(rng, 7, 11)),
+        }
+    if scenario_type == "VehicleOpensDoorTwoWays":
+        return {
+            "distance": _value(_int(rng, 37, 59)),
+            "direction": _value("right"),
+            "frequency": {"from": _int(rng, 30, 40), "to": _int(rng, 89, 98)},
+        }
+    if scenario_type == "InvadingTurn":
+        return {"distance": _value(_int(rng, 50, 60)), "offset": _value(f"{rng.uniform(0.18, 0.34):.2f}")}
     if scenario_type == "DynamicObjectCrossing":
         model = BLOCKER_MODELS[int(rng.integers(len(BLOCKER_MODELS)))]
         return {
@@ -547,10 +795,50 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "flow_speed": _value(_int(rng, 9, 10)),
             "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 28)},
         }
+    if scenario_type == "NonSignalizedJunctionLeftTurn":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "SignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 17, 19), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "EnterActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 12, 14)),
+            "source_dist_interval": {"from": _int(rng, 25, 30), "to": _int(rng, 33, 39)},
+        }
+    if scenario_type == "CrossingBicycleFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 9)),
+            "source_dist_interval": {"from": _int(rng, 13, 15), "to": _int(rng, 25, 30)},
+        }
+    if scenario_type == "SignalizedJunctionRightTurn":
+        return {
+            "flow_speed": _value(_int(rng, 10, 12)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 28, 38)},
+        }
     if scenario_type == "NonSignalizedJunctionRightTurn":
         return {
             "flow_speed": _value(_int(rng, 8, 11)),
             "source_dist_interval": {"from": _int(rng, 18, 22), "to": _int(rng, 27, 30)},
+        }
+    if scenario_type == "InterurbanActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 15, 16)),
+            "source_dist_interval": {"from": _int(rng, 42, 53), "to": _int(rng, 78, 98)},
+        }
+    if scenario_type == "InterurbanAdvancedActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 16, 18)),
+            "source_dist_interval": {"from": _int(rng, 36, 42), "to": _int(rng, 84, 94)},
         }
     if scenario_type == "YieldToEmergencyVehicle":
         return {"distance": _value(_int(rng, 26, 30))}

@@ -9,7 +9,7 @@ import pytest
 
 from b2d_data.collection.annotations import PlannerFields, build_annotation, count_points_in_box
 from b2d_data.format.anno_schema import check_anno
-from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform
+from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import PRESETS
 from b2d_data.sim.api import (
     ActorKind,
@@ -38,6 +38,31 @@ def test_count_points_uses_the_actor_origin_box():
     ])  # fmt: skip
     assert count_points_in_box(pts, ego, other) == 2
     assert count_points_in_box(None, ego, other) == -1
+
+
+def test_count_points_matches_testing_every_point():
+    """The count skips points far along ego x; it must equal the box test applied to every point."""
+    rng = np.random.default_rng(5)
+    for k in range(20):
+        ego_tf = Transform(Location(*rng.uniform(-50, 50, 2), 0.0), Rotation(yaw=float(rng.uniform(-180, 180))))
+        ego = make_actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, ego_tf, (2.4, 1.0, 0.75), (14,))
+        rel = rng.uniform(-15, 15, 2)
+        other_tf = Transform(ego_tf.transform_point(Location(float(rel[0]), float(rel[1]), 0.0)),
+                             Rotation(yaw=float(rng.uniform(-180, 180))))  # fmt: skip
+        other = make_actor(2, "vehicle.audi.a2", ActorKind.VEHICLE, other_tf, (2.0, 1.0, 0.8), (14,))
+        around = np.zeros((500, 3))
+        around[:, :2] = rel + rng.uniform(-2.5, 2.5, (500, 2))  # a cloud on and around the other car
+        around[:, 2] = rng.uniform(-1.0, 1.0, 500)
+        pts = np.concatenate([rng.uniform(-40, 40, (3000, 3)) * [1, 1, 0.05], around])
+        pts = pts.astype(np.float32)
+        # Every point through the box rule (the actor origin in the ego frame, relative yaw, half extents).
+        o = ego_tf.inverse_transform_points(other_tf.location.to_array()[None, :])[0]
+        yaw = np.radians(other_tf.rotation.yaw - ego_tf.rotation.yaw)
+        d = pts - o
+        lx, ly = np.cos(yaw) * d[:, 0] + np.sin(yaw) * d[:, 1], -np.sin(yaw) * d[:, 0] + np.cos(yaw) * d[:, 1]
+        expected = int(np.count_nonzero((np.abs(lx) < 2.0) & (np.abs(ly) < 1.0) & (np.abs(d[:, 2]) < 0.8)))
+        assert count_points_in_box(pts, ego, other) == expected, k
+        assert expected > 0 or k > 0
 
 
 def test_annotation_follows_the_schema_and_values(town01):

@@ -30,7 +30,7 @@ def interurban(tmp_path_factory):
 def test_every_implemented_type_has_a_layout():
     # NoScenario: plain routes, a layout without a behaviour
     assert sorted(set(LAYOUTS) - {"NoScenario"}) == IMPLEMENTED and "NoScenario" in LAYOUTS
-    assert len(IMPLEMENTED) >= 24  # issue 4's 12 and issue 14's 12
+    assert len(IMPLEMENTED) >= 30  # issue 4's 12, issue 12's 6 and issue 14's 12
 
 
 def test_no_scenario_routes_hold_no_scenario_and_cross_a_junction(town):

@@ -58,6 +58,9 @@ def create_gl_context() -> moderngl.Context:
 
     ``B2D_EGL_DEVICE=<index>`` forces one EGL device.
     """
+    # The NVIDIA driver spins a core while it waits for the GPU (glFinish, read-backs); sleeping instead frees that
+    # core for the other route processes. Read when the driver loads, i.e. before the first context.
+    os.environ.setdefault("__GL_YIELD", "USLEEP")
     forced = os.environ.get("B2D_EGL_DEVICE")
     if forced is not None:
         return moderngl.create_standalone_context(backend="egl", device_index=int(forced))

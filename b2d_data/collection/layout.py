@@ -1,0 +1,72 @@
+"""How many route processes and encoder processes a collection runs, chosen from the cores and GPUs present.
+
+With a GPU the rendering costs the CPU little, so every stage of a frame is CPU work that scales with processes:
+one route process per core, each encoding its own frames (an encoder pool would only add copies). Without a GPU
+the cameras are rasterised by Mesa's llvmpipe, which spreads each frame over every core by itself: one route at a
+time, with its encoding in a small pool of processes beside it.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+#: Thread pools of the native libraries a route process uses, capped at one thread when several route processes
+#: share the cores: each pool sizes itself to every core of the machine, and dozens of spinning helper threads per
+#: process cost more CPU than they save (OpenCV's colour conversions alone took 3x their single-thread CPU time).
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+#: Where the NVIDIA driver lists its GPUs (one folder each).
+_NVIDIA_GPUS = Path("/proc/driver/nvidia/gpus")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Route processes and encoder processes per route process."""
+
+    workers: int
+    encode_workers: int
+
+
+def count_gpus() -> int:
+    """NVIDIA GPUs visible to this process (``CUDA_VISIBLE_DEVICES`` narrows the driver's list); 0 without any."""
+    try:
+        present = sum(1 for p in _NVIDIA_GPUS.iterdir() if p.is_dir())
+    except OSError:
+        return 0
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if visible is None:
+        return present
+    chosen = [v for v in visible.split(",") if v.strip() and v.strip() != "-1"]
+    return min(present, len(chosen))
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its affinity mask where the platform has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def auto_layout(cores: int | None = None, gpus: int | None = None) -> Layout:
+    """The layout of ``--workers auto`` for ``cores`` cores and ``gpus`` GPUs (default: this machine's)."""
+    cores = usable_cores() if cores is None else max(1, cores)
+    gpus = count_gpus() if gpus is None else max(0, gpus)
+    if gpus > 0:
+        return Layout(workers=cores, encode_workers=0)
+    return Layout(workers=1, encode_workers=max(1, min(4, cores)))
+
+
+def single_thread_environment() -> None:
+    """Cap the BLAS/OpenMP pools of processes started from now on (values the user set are kept)."""
+    for key, value in SINGLE_THREAD_ENV.items():
+        os.environ.setdefault(key, value)
+
+
+def single_thread_worker() -> None:
+    """In a route process that shares the machine with others: one OpenCV thread (set before any encoding)."""
+    import cv2
+
+    cv2.setNumThreads(1)

@@ -1,0 +1,167 @@
+"""Highway merges (§2.2 #35): HighwayCutIn.
+
+A car waits on the on-ramp at the XML's ``other_actor_location``. At the trigger the merge junction is cleared, the
+ramp entry removed from background traffic and the road after the junction kept free for 170 m; the car then drives
+down the ramp at the speed that brings it 10 m past the merge junction's exit (on the acceleration lane) exactly
+when the ego reaches its own junction exit (scenario_runner's SyncArrivalWithAgent). There it cuts into the ego's
+lane at 80 % of the ego's speed: 0.3 s on its lane, a 2 s lane change, 3 s in the ego's lane; then it is removed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from enum import Enum
+
+import numpy as np
+
+from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.maps import Waypoint
+from b2d_data.scenarios.catalog.interurban import location_parameter
+from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from b2d_data.scenarios.catalog.road_geometry import is_driving, lane_walk, same_direction_driving_neighbour
+from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
+from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.sim import blueprints
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+#: The cut-in car reaches this far past the merge junction's exit when the ego reaches its own exit (m).
+CUT_IN_DISTANCE = 10.0
+#: The road after the junction kept free of background traffic (m).
+EXTRA_SPACE = 170.0
+#: The cut-in: time on its own lane, time of the lane change, time in the ego's lane (s); speed as ego's share.
+SAME_LANE_TIME, CHANGE_TIME, OTHER_LANE_TIME = 0.3, 2.0, 3.0
+SPEED_SHARE = 0.8
+#: Fastest the cut-in car drives while it times its arrival (m/s).
+MAX_SYNC_SPEED = 35.0
+
+
+class _Phase(str, Enum):
+    WAITING = "waiting"
+    SYNC = "sync"
+    CUT_IN = "cut_in"
+    DONE = "done"
+
+
+def cut_in_path(start: Waypoint, speed: float) -> np.ndarray:
+    """Points 1 m apart from ``start`` (on the lane right of the target) into its left neighbour: ``speed`` ×
+    (0.3 s straight, 2 s smooth lateral shift, 3 s on the new lane)."""
+    target = same_direction_driving_neighbour(start, "left")
+    if target is None:
+        raise ScenarioSetupError(f"no lane left of road {start.road_id} lane {start.lane_id} to cut into")
+    keep, change, after = speed * SAME_LANE_TIME, speed * CHANGE_TIME, speed * OTHER_LANE_TIME
+    rows = []
+    for i, wp in enumerate(lane_walk(target, keep + change + after + 2.0)):
+        s = float(i)
+        t = min(max((s - keep) / max(change, 1e-6), 0.0), 1.0)
+        w = t * t * (3.0 - 2.0 * t)  # smooth start and end of the lateral move
+        right = wp.get_right_lane()
+        loc = wp.transform.location
+        if w < 1.0 and right is not None and is_driving(right):
+            r = right.transform.location
+            x, y = r.x + w * (loc.x - r.x), r.y + w * (loc.y - r.y)
+        elif w < 1.0:
+            yaw = math.radians(wp.transform.rotation.yaw)
+            off = (1.0 - w) * wp.lane_width
+            x, y = loc.x - math.sin(yaw) * off, loc.y + math.cos(yaw) * off
+        else:
+            x, y = loc.x, loc.y
+        rows.append((x, y, loc.z))
+    return np.array(rows)
+
+
+@register
+class HighwayCutIn(JunctionScenario):
+    """A car from the on-ramp cuts into the ego's lane just after the merge (§2.2 #35)."""
+
+    xml_type = "HighwayCutIn"
+    required_turn = ("straight",)
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        start = ctx.map.get_waypoint(location_parameter(ctx, "other_actor_location"))
+        if start is None or start.is_junction:
+            raise ScenarioSetupError(f"{self.name}: other_actor_location is not on a lane before the junction")
+        walk = lane_walk(start, 400.0)
+        inside = [k for k, wp in enumerate(walk) if wp.is_junction and wp.junction_id == self.junction.id]
+        if not inside or inside[-1] + 1 >= len(walk):
+            raise ScenarioSetupError(
+                f"{self.name}: layout missing: the lane at other_actor_location does not merge through junction "
+                f"{self.junction.id}"
+            )
+        after = inside[-1] + 1 + round(CUT_IN_DISTANCE)
+        if after >= len(walk) or walk[after].is_junction:
+            raise ScenarioSetupError(f"{self.name}: the acceleration lane ends within {CUT_IN_DISTANCE:.0f} m")
+        if self.ego_exit is None or self.exit_index is None:
+            raise ScenarioSetupError(f"{self.name}: the route ends inside junction {self.junction.id}")
+        self.start_wp = start
+        self.path = walk[: after + 1]
+        self.track = PathTrack.from_waypoints(self.path)
+        self.actor_id: int | None = None
+        self.agent: ConstantVelocityAgent | None = None
+        self.phase = _Phase.WAITING
+        self.cut_in_speed = 0.0
+        self._seen = False
+
+    def build(self) -> None:
+        """Spawn the car on the ramp and hold it there."""
+        spec = blueprints.random_background_car(self.ctx.rng, role_name=SCENARIO_ROLE)
+        t = self.start_wp.transform
+        transform = Transform(Location(t.location.x, t.location.y, t.location.z + 0.2), Rotation(yaw=t.rotation.yaw))
+        self.actor_id = self.spawn(spec.type_id, transform, spec.attributes)
+        park(self.ctx.sim, self.actor_id)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the merge, remove the ramp from background traffic, keep the road ahead free; start the approach."""
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=False, remove_entries=[self.path[0]], remove_exits=[],
+            stop_entries=False, extend_road_exit=EXTRA_SPACE,
+        )  # fmt: skip
+        if self.actor_id is None:
+            return
+        self.agent = ConstantVelocityAgent(self.ctx.sim, self.actor_id, self.track, 0.0, resume_accel=8.0)
+        self.phase = _Phase.SYNC
+
+    def _ego_to_exit(self, snapshot: Snapshot) -> tuple[float, float]:
+        ego = self.ctx.ego(snapshot)
+        if ego is None or self.exit_index is None:
+            return 0.0, 0.0
+        s = self.ctx.route.cumulative_length
+        index = self.ctx.route.closest_index(ego.location)
+        return float(s[self.exit_index] - s[index]), ego.speed()
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Time the arrival, then cut in; SUCCESS once the cut-in is over."""
+        if self.agent is None or self.actor_id is None:
+            return ScenarioStatus.SUCCESS  # nothing was spawned
+        if self.actor_id not in snapshot.actors:
+            # spawned this tick (not in the snapshot yet), or removed by somebody else since
+            return ScenarioStatus.SUCCESS if self._seen else ScenarioStatus.RUNNING
+        self._seen = True
+        if self.phase is _Phase.SYNC:
+            ego_left, ego_speed = self._ego_to_exit(snapshot)
+            actor_left = self.track.length - self.agent.progress(snapshot)
+            if actor_left <= 0.5 or ego_left <= 0.0:
+                self._begin_cut_in(snapshot, ego_speed)
+            else:
+                # SyncArrivalWithAgent: arrive when the ego does, at the ego's time-to-arrival
+                self.agent.speed = min(MAX_SYNC_SPEED, ego_speed * actor_left / max(ego_left, 0.5))
+        if self.phase is _Phase.CUT_IN and self.agent.done:
+            self.destroy(self.actor_id)
+            self.phase = _Phase.DONE
+            return ScenarioStatus.SUCCESS
+        self.agent.run_step(snapshot)
+        return ScenarioStatus.RUNNING
+
+    def _begin_cut_in(self, snapshot: Snapshot, ego_speed: float) -> None:
+        actor = snapshot.actors[self.actor_id]
+        here = self.ctx.map.get_waypoint(actor.location)
+        if here is None or here.is_junction or same_direction_driving_neighbour(here, "left") is None:
+            here = self.path[-1]
+        self.cut_in_speed = max(SPEED_SHARE * ego_speed, 1.0)
+        track = PathTrack(cut_in_path(here, self.cut_in_speed))
+        self.agent = ConstantVelocityAgent(self.ctx.sim, self.actor_id, track, self.cut_in_speed)
+        self.phase = _Phase.CUT_IN
+        log.debug("%s: cut-in at %.1f m/s", self.name, self.cut_in_speed)

@@ -1,0 +1,104 @@
+"""The PNG encoder of the label and depth images: valid files, decoded bit-exactly by OpenCV and PIL."""
+
+from __future__ import annotations
+
+import io
+import zlib
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from b2d_data.codecs import (
+    depth_to_png_pixels,
+    encode_depth_png,
+    encode_instance_png,
+    encode_semantic_png,
+    instance_bgra,
+    read_depth_png,
+    read_instance_png,
+    read_semantic_png,
+)
+from b2d_data.codecs.png import encode_png, sub_filtered
+
+
+def _label_like(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """Boxes of constant value on a constant background, plus a noisy strip: runs and high entropy together."""
+    img = np.full(shape, 7, np.uint8)
+    for _ in range(12):
+        y, x = rng.integers(0, shape[0] - 8), rng.integers(0, shape[1] - 8)
+        img[y : y + rng.integers(2, 9), x : x + rng.integers(2, 9)] = rng.integers(0, 256, shape[2:] or None)
+    img[-3:] = rng.integers(0, 256, img[-3:].shape)
+    return img
+
+
+@pytest.mark.parametrize("shape", [(37, 53), (37, 53, 3), (37, 53, 4), (1, 1), (1, 9, 4)])
+def test_opencv_and_pil_decode_the_encoded_pixels(shape):
+    rng = np.random.default_rng(len(shape) * 100 + shape[0])
+    img = _label_like(rng, shape) if min(shape[:2]) > 8 else rng.integers(0, 256, shape, dtype=np.uint8)
+    data = encode_png(img)
+    via_cv = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if img.ndim == 3:  # OpenCV returns colour PNGs in B, G, R(, A) order
+        via_cv = via_cv[..., [2, 1, 0, 3][: img.shape[2]]]
+    assert np.array_equal(via_cv.reshape(img.shape), img)
+    pil = Image.open(io.BytesIO(data))
+    assert pil.mode == {2: "L", 3: "RGB", 4: "RGBA"}[img.ndim if img.ndim == 2 else img.shape[2]]
+    assert np.array_equal(np.asarray(pil), img)
+
+
+def test_sub_filter_by_hand():
+    # Row [10, 12, 11] (grey): filter byte 1, then 10, 12 - 10 = 2, 11 - 12 = -1 = 255 (mod 256).
+    row = np.array([[10, 12, 11]], np.uint8)
+    assert sub_filtered(row).tolist() == [[1, 10, 2, 255]]
+    # RGBA: the left neighbour is the same channel one pixel (4 bytes) earlier.
+    px = np.array([[[1, 2, 3, 255], [4, 2, 1, 255]]], np.uint8)
+    assert sub_filtered(px).tolist() == [[1, 1, 2, 3, 255, 3, 0, 254, 0]]
+
+
+def test_file_structure_is_plain_png():
+    data = encode_png(np.zeros((5, 6, 4), np.uint8))
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR" and data[16:29] == bytes([0, 0, 0, 6, 0, 0, 0, 5, 8, 6, 0, 0, 0])
+    # Every chunk's CRC holds (PIL's verify() checks them too).
+    pos = 8
+    while pos < len(data):
+        n = int.from_bytes(data[pos : pos + 4], "big")
+        kind, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + n]
+        assert int.from_bytes(data[pos + 8 + n : pos + 12 + n], "big") == zlib.crc32(kind + body)
+        pos += 12 + n
+    assert kind == b"IEND"
+    Image.open(io.BytesIO(data)).verify()
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(ValueError, match="uint8"):
+        encode_png(np.zeros((4, 4), np.uint16))
+    with pytest.raises(ValueError, match="channels"):
+        encode_png(np.zeros((4, 4, 2), np.uint8))
+
+
+def test_files_decode_as_opencvs_own_encoder_did():
+    """The images written before (OpenCV's imencode) and now decode to the same arrays through the readers."""
+    rng = np.random.default_rng(3)
+    tags = _label_like(rng, (90, 160))
+    ids = (_label_like(rng, (90, 160)).astype(np.uint16) * 257 + rng.integers(0, 3, (90, 160))).astype(np.uint16)
+    depth = rng.uniform(0.0, 400.0, (90, 160)).astype(np.float32)
+    depth[:10] = 1000.0
+    before = {
+        "semantic": cv2.imencode(".png", tags)[1].tobytes(),
+        "instance": cv2.imencode(".png", instance_bgra(tags, ids))[1].tobytes(),
+        "depth": cv2.imencode(".png", depth_to_png_pixels(depth))[1].tobytes(),
+    }
+    after = {
+        "semantic": encode_semantic_png(tags),
+        "instance": encode_instance_png(tags, ids),
+        "depth": encode_depth_png(depth),
+    }
+    assert np.array_equal(read_semantic_png(before["semantic"]), read_semantic_png(after["semantic"]))
+    (t0, i0), (t1, i1) = read_instance_png(before["instance"]), read_instance_png(after["instance"])
+    assert np.array_equal(t0, t1) and np.array_equal(i0, i1) and np.array_equal(i1, ids)
+    assert np.array_equal(read_depth_png(before["depth"]), read_depth_png(after["depth"]))
+    for kind, old in before.items():  # PIL too (RGBA for instance images, L for the others)
+        a, b = Image.open(io.BytesIO(old)), Image.open(io.BytesIO(after[kind]))
+        assert a.mode == b.mode and np.array_equal(np.asarray(a), np.asarray(b))

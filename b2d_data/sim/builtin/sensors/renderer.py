@@ -18,7 +18,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
 
-import cv2
 import moderngl
 import numpy as np
 
@@ -283,7 +282,6 @@ class _Targets:
 
     def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool, depth8: bool) -> None:
         self.color = ctx.texture((width, height), 4, dtype="f1")
-        self.rgba = np.empty((height, width, 4), np.uint8)  # read-back buffer of the colour target
         # Unlabelled cameras (top-down) bind only the colour target: the other outputs are dropped unwritten.
         self.depth = ctx.texture((width, height), 1, dtype="u1" if depth8 else "f4") if labels else None
         self.tags = ctx.texture((width, height), 1, dtype="u1") if labels else None
@@ -517,9 +515,11 @@ class Renderer:
         frames = []
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
-            # Reading RGBA and dropping alpha with OpenCV is about twice as fast as letting GL convert to RGB.
-            targets.fbo.read_into(targets.rgba, components=4, attachment=0)
-            rgb = cv2.cvtColor(targets.rgba, cv2.COLOR_RGBA2RGB)
+            # Reading RGBA is about twice as fast as letting GL convert to RGB. RGB is a view of a fresh RGBA array
+            # (each frame owns its pixels): the JPEG encoders drop the alpha in their own conversion, saving a copy.
+            rgba = np.empty((h, w, 4), np.uint8)
+            targets.fbo.read_into(rgba, components=4, attachment=0)
+            rgb = rgba[..., :3]
             if not view.labels:
                 frames.append(CameraFrame(rgb=rgb))
                 continue

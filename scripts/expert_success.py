@@ -31,14 +31,20 @@ from b2d_data.collection.plan import RouteTask, route_seed
 from b2d_data.collection.runner import run_tasks
 from b2d_data.collection.towns import TownSource, load_map, xodr_in_folder
 
-#: The twelve scenario types of issue 4.
+#: The twelve scenario types of issue 4, then the overtaking/give-way family of issue 11.
 SCENARIOS: tuple[str, ...] = (
     "Accident", "ParkedObstacleTwoWays", "HazardAtSideLane", "HardBreakRoute", "DynamicObjectCrossing",
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
+    # issue 12
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
     # issue 13: highway and interurban
     "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow",
+    # issue 11: overtaking and give-way
+    "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays",
+    "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays", "InvadingTurn",
 )  # fmt: skip
 BAR = 0.9
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -31,6 +31,9 @@ CARLA_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
 #: The ego itself drives with ``blueprints.EGO_DYNAMICS`` (PDM-Lite's CARLA ego model, so the ego forecast keeps
 #: PDM-Lite's polynomial); on that model these parameters hold 2–25 m/s targets within −0.03 … +0.57 m/s, closer
 #: than the same procedure re-run on it (−0.16 … +0.57 m/s), so they are kept.
+#: Metres the builtin expert's two-way shifts extend before the first and after the last obstacle actor, where they
+#: differ from PDM-Lite's (see :meth:`ExpertConfig.for_builtin`).
+BUILTIN_EXTRA_LENGTH_TWO_WAYS: dict[str, float] = {"ConstructionObstacleTwoWays": 7.0, "VehicleOpensDoorTwoWays": 2.0}
 BUILTIN_LINEAR_REGRESSION_PARAMS: tuple[float, ...] = (
     0.039967819680455846, 0.30170846342589847, 0.254426199300406, -279.7896903295491, -8.884050257847589,
     18.4254759833086, 1.031266635497984,
@@ -219,5 +222,18 @@ class ExpertConfig:
 
     @classmethod
     def for_builtin(cls) -> ExpertConfig:
-        """The default config with the throttle regression re-fitted for the builtin simulator's dynamics."""
-        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS)
+        """The default config with the throttle regression re-fitted for the builtin simulator's dynamics.
+
+        Two two-way shifts are longer: ConstructionObstacleTwoWays, because at the 50 km/h commit speed the steering
+        aims 5 m ahead and turns back into the lane over the 4 m ramp before the ego's rear has cleared the cones on
+        the passing-side lane edge (+1.5 m clipped the last cone in every generated route); VehicleOpensDoorTwoWays,
+        because here an open door widens the car's collision box by 0.9 m (CARLA's does not), and with −2 m the ego
+        waits nose to tail with the car and clips the door while swinging out.
+
+        InvadingTurn keeps the full offset next to a shoulder: PDM-Lite takes 0.3 m off it for a fence that may stand
+        there, which leaves ~0 of the 0.18–0.34 m beside the generated streets' gutter (a 0.3–0.5 m shoulder lane
+        with no fence), and the invading cars then touch the ego.
+        """
+        extra = {**cls().extra_length_two_ways, **BUILTIN_EXTRA_LENGTH_TWO_WAYS}
+        return cls(linear_regression_params=BUILTIN_LINEAR_REGRESSION_PARAMS, extra_length_two_ways=extra,
+                   invading_turn_fence_margin=0.0)

@@ -42,6 +42,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ONE_WAY = ("Accident", "ConstructionObstacle", "ParkedObstacle")
+#: One-way obstacles made of props, which the vehicle forecast does not see.
+PROP_OBSTACLES = ("ConstructionObstacle",)
 TWO_WAYS = ("AccidentTwoWays", "ConstructionObstacleTwoWays", "ParkedObstacleTwoWays", "VehicleOpensDoorTwoWays")
 HANDLED = ONE_WAY + TWO_WAYS + ("HazardAtSideLane", "HazardAtSideLaneTwoWays", "YieldToEmergencyVehicle",
                                 "InvadingTurn")  # fmt: skip
@@ -206,16 +208,38 @@ class ObstacleScenarioManager:
     def _one_way(self, ego: ActorState, route: DenseRoute, hint: ScenarioHint, first: ActorState,
                  last: ActorState | None, record: ScenarioRecord, target_speed: float) -> ObstacleResult:
         cfg = self.config
-        if horizontal_distance(ego, first) < cfg.max_distance_to_process_scenario:
+        props = hint.scenario_type in PROP_OBSTACLES
+        if horizontal_distance(ego, first) < cfg.max_distance_to_process_scenario and not record.changed_route:
             transition = cfg.points(cfg.transition_length_construction if hint.scenario_type == "ConstructionObstacle"
                                     else cfg.transition_length)
             start, end = shift_route_around_actors(
                 route, _xyz(first), first.bounding_box.extent.x, None if last is None else _xyz(last),
                 0.0 if last is None else last.bounding_box.extent.x, hint.direction, transition,
             )  # fmt: skip
-            record.changed_route, record.from_index, record.to_index, record.done = True, start, end, True
+            # props stay handled until the ego has passed the first one (see _stand_before_props)
+            record.changed_route, record.from_index, record.to_index, record.done = True, start, end, not props
             log.debug("%s: route shifted over [%d, %d)", hint.scenario_type, start, end)
+        if props and record.changed_route:
+            if float(ego.transform.get_forward_vector().to_array() @ (_xyz(first) - _xyz(ego))) < 0.0:
+                record.done = True
+                return ObstacleResult(target_speed, scenario=hint.scenario_type)
+            return self._stand_before_props(ego, route, first, target_speed, hint.scenario_type)
         return ObstacleResult(target_speed, scenario=hint.scenario_type)
+
+    def _stand_before_props(self, ego: ActorState, route: DenseRoute, first: ActorState, target_speed: float,
+                            kind: str) -> ObstacleResult:
+        """A deviation from PDM-Lite: props are no vehicles, so nothing else stops the ego before a construction
+        site while the forecast holds it in its lane for traffic in the target lane; until it has left its lane the
+        first prop is a standing leader (IDM as for the two-way wait)."""
+        cfg = self.config
+        index = min(route.index, len(route) - 1)
+        off_lane = float(np.linalg.norm(_xyz(ego)[:2] - route.original_points[index, :2]))
+        if off_lane > cfg.hold_lane_tolerance:
+            return ObstacleResult(target_speed, scenario=kind)
+        distance = horizontal_distance(ego, first)
+        speed = idm_target_speed(cfg, target_speed, ego.speed(), ego.bounding_box.extent.x + first.bounding_box.extent.x,
+                                 0.0, distance, cfg.idm_two_way_s0, cfg.idm_two_way_T)
+        return ObstacleResult(speed, reduced_by=ReducedBy(speed, first.type_id, first.id, distance), scenario=kind)
 
     def _two_ways(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, hint: ScenarioHint,
                   first: ActorState, last: ActorState | None, record: ScenarioRecord,

@@ -330,7 +330,8 @@ class LaneFollowingAgent:
     The path is the lane from ``start`` (straightest branch at forks), extended as the vehicle advances, or a fixed
     ``waypoints`` list. Speed follows the target with ``accel``/``decel`` bounds; a vehicle in the path closer than
     ``base_threshold + speed_ratio × speed [km/h]`` metres (now, or in ``predict`` s at its current velocity) makes
-    it stop. ``max_distance`` (m) ends the drive: the vehicle then stops with the hand brake (``done``).
+    it stop (a vehicle counts when its box comes within ``lateral_margin`` of the path's swept width).
+    ``max_distance`` (m) ends the drive: the vehicle then stops with the hand brake (``done``).
     """
 
     def __init__(
@@ -348,10 +349,12 @@ class LaneFollowingAgent:
         speed_ratio: float = 0.5,
         ignore: Iterable[int] = (),
         predict: float = 1.0,
+        lateral_margin: float = 0.3,
     ) -> None:
         self.sim = sim
         self.actor_id = actor_id
         self.predict = predict
+        self.lateral_margin = lateral_margin
         self.target_speed = float(target_speed)
         self.lateral_offset = float(lateral_offset)
         self.max_distance = max_distance
@@ -412,7 +415,8 @@ class LaneFollowingAgent:
         allowed = self.target_speed
         if self.detect_vehicles:
             threshold = self.base_threshold + self.speed_ratio * v * 3.6
-            gap, _ = leader_gap(snapshot, actor, self.path, s_now, threshold, self.ignore, predict=self.predict)
+            gap, _ = leader_gap(snapshot, actor, self.path, s_now, threshold, self.ignore, self.lateral_margin,
+                                self.predict)
             if gap < threshold:
                 allowed = min(allowed, allowed_speed(gap, self.decel, 2.0))
         self._speed_cmd, longitudinal = speed_control(self._speed_cmd, allowed, self.accel, 2.0 * self.decel)

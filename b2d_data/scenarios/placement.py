@@ -23,12 +23,14 @@ from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
 from b2d_data.scenarios.catalog.junctions import walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     connection,
     entries_from,
     find_side_lane,
+    flow_into_exit,
     is_driving,
     is_outermost_driving,
     junction_lanes,
@@ -205,6 +207,19 @@ def _opposite_flow_room(town: Map, wp: Waypoint) -> bool:
     return bool(opposite.previous(reach)) and bool(opposite.next(reach))
 
 
+def _door_side_lane(town: Map, wp: Waypoint) -> bool:
+    """A parking lane (or wide shoulder) on the right where the car may stand (37–59 m after the trigger), and room
+    for the opposite flow around it."""
+    from b2d_data.scenarios.catalog.vehicle_opens_door import side_lane
+
+    ahead: Waypoint | None = move_along(wp, 37.0, step=37.0)
+    for _ in range(4):
+        if ahead is None or side_lane(ahead, "right") is None:
+            return False
+        ahead = move_along(ahead, 7.0, step=7.0)
+    return _opposite_flow_room(town, wp)
+
+
 def _sidewalk_ahead(town: Map, wp: Waypoint) -> bool:
     """A sidewalk on the right where the blocker and the pedestrian stand (40–51 m after the trigger)."""
     ahead: Waypoint | None = move_along(wp, 40.0, step=10.0)
@@ -251,9 +266,55 @@ def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], l
     return check
 
 
+def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """An opposite entry turning right onto the road the ego turns left into."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        if flow_into_exit(lanes, entry, conn.exit) is not None:
+            return [{}]
+    return []
+
+
+#: EnterActorFlow's flow starts this far before the junction (less where an earlier junction is nearer) and ends
+#: this far after it (m), as in Bench2Drive's routes (45-60 m before, 20-25 m after).
+ENTER_FLOW_BACK, ENTER_FLOW_AFTER = 55.0, 22.0
+
+
 def _xml_location(wp: Waypoint) -> dict[str, str]:
     loc = wp.transform.location
     return {"x": f"{loc.x:.1f}", "y": f"{loc.y:.1f}", "z": f"{loc.z:.1f}"}
+
+
+def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A left entry whose straight lane reaches the road the ego turns right into: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        flow = flow_into_exit(lanes, entry, conn.exit, turn="straight")
+        if flow is None:
+            continue
+        end = move_along(flow.exit, ENTER_FLOW_AFTER, step=2.0)
+        if end is None or end.is_junction:
+            continue
+        start = walk_back_to_source(flow.entry, ENTER_FLOW_BACK)
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(end)}]
+    return []
+
+
+#: CrossingBicycleFlow's bicycles start this far before the junction on the bike lane (m).
+BICYCLE_FLOW_BACK = 30.0
+
+
+def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A bike lane right of an opposite entry that runs straight through the junction: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        bike = find_side_lane(entry, "right", LaneType.BIKING)
+        if bike is None:
+            continue
+        start = walk_back_to_source(bike, BICYCLE_FLOW_BACK)
+        try:
+            path = bicycle_path(start, conn.junction_id)
+        except ScenarioError:
+            continue
+        return [{"start_actor_flow": _xml_location(start), "end_actor_flow": _xml_location(path[-1])}]
+    return []
 
 
 #: Interurban roads are faster than this (km/h); town streets and boulevards are 30–60.
@@ -365,6 +426,13 @@ LAYOUTS: dict[str, Layout] = {
                                     extra=_opposite_flow_room, max_turn=STRAIGHTISH),
     "HazardAtSideLane": Layout("multi_lane", "two same-direction lanes (ego on the right one), 130 m junction-free",
                                _multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH),
+    "HazardAtSideLaneTwoWays": Layout("two_way_street", "one lane each way, 130 m junction-free",
+                                      _two_way_single, clear_after=130.0, max_turn=STRAIGHTISH),
+    "VehicleOpensDoorTwoWays": Layout("parking_lane", "one lane each way with a parking lane (or a shoulder of "
+                                      "2 m) on the right 37–59 m ahead, 115 m junction-free", _two_way_single,
+                                      clear_after=115.0, extra=_door_side_lane, max_turn=STRAIGHTISH),
+    "InvadingTurn": Layout("two_way_street", "one lane each way, 100 m junction-free", _two_way_single,
+                           clear_after=100.0),
     "HardBreakRoute": Layout("road", "any driving lane, 60 m junction-free", _any_lane, clear_after=60.0),
     "DynamicObjectCrossing": Layout("sidewalk", "rightmost lane with a sidewalk on the right, 110 m junction-free",
                                     _rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH),
@@ -372,6 +440,16 @@ LAYOUTS: dict[str, Layout] = {
     "YieldToEmergencyVehicle": Layout("multi_lane", "two same-direction lanes, 35 m behind and 200 m ahead "
                                       "junction-free", _multi_lane_any, clear_before=35.0, clear_after=200.0,
                                       max_turn=STRAIGHTISH, length=230.0),
+    "ParkedObstacle": Layout("multi_lane", "two same-direction lanes, 100 m junction-free and straight-ish",
+                             _multi_lane_left, clear_after=100.0, max_turn=STRAIGHTISH),
+    "ConstructionObstacle": Layout("multi_lane", "two same-direction lanes, 110 m junction-free and straight-ish",
+                                   _multi_lane_left, clear_after=110.0, max_turn=STRAIGHTISH),
+    "AccidentTwoWays": Layout("two_way_street", "one lane each way, 120 m junction-free, opposite lane continuing "
+                              "~105 m around the obstacle", _two_way_single, clear_after=120.0,
+                              extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+    "ConstructionObstacleTwoWays": Layout("two_way_street", "one lane each way, 110 m junction-free, opposite lane "
+                                          "continuing ~105 m around the obstacle", _two_way_single,
+                                          clear_after=110.0, extra=_opposite_flow_room, max_turn=STRAIGHTISH),
     "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane, 40 m junction-free", _any_lane,
                           clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot),
     "OppositeVehicleRunningRedLight": Layout(
@@ -380,6 +458,25 @@ LAYOUTS: dict[str, Layout] = {
     "SignalizedJunctionLeftTurn": Layout(
         "signalized_junction", "a signalised junction where the route turns left, with an opposite entry going "
         "straight", turns=("left",), signalized=True, junction_extra=_flow_from("opposite")),
+    "NonSignalizedJunctionLeftTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=False, junction_extra=_flow_from("opposite")),
+    "SignalizedJunctionLeftTurnEnterFlow": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry turning "
+        "right into the same road", turns=("left",), signalized=True, junction_extra=_flow_into_ego_exit),
+    "NonSignalizedJunctionLeftTurnEnterFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry "
+        "turning right into the same road", turns=("left",), signalized=False, junction_extra=_flow_into_ego_exit),
+    "EnterActorFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
+        "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
+        junction_extra=_enter_flow),
+    "CrossingBicycleFlow": Layout(
+        "bike_lane", "a junction where the route turns left across an opposite bike lane that continues straight "
+        "through it", turns=("left",), junction_extra=_bicycle_flow),
+    "SignalizedJunctionRightTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
     "NonSignalizedJunctionRightTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns right, with a left entry going "
         "straight", turns=("right",), signalized=False, junction_extra=_flow_from("left")),
@@ -563,6 +660,20 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "distance": _value(_int(rng, 40, 44)),
             "frequency": {"from": _int(rng, 31, 56), "to": _int(rng, 106, 151)},
         }
+    if scenario_type == "ParkedObstacle":
+        return {"distance": _value(_int(rng, 40, 43)), "direction": _value("right"), "speed": _value(_int(rng, 40, 59))}
+    if scenario_type == "ConstructionObstacle":
+        return {"distance": _value(_int(rng, 40, 45)), "direction": _value("right"), "speed": _value(_int(rng, 47, 55))}
+    if scenario_type == "AccidentTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 44)),
+            "frequency": {"from": _int(rng, 32, 63), "to": _int(rng, 109, 184)},
+        }
+    if scenario_type == "ConstructionObstacleTwoWays":
+        return {
+            "distance": _value(_int(rng, 40, 45)),
+            "frequency": {"from": _int(rng, 43, 70), "to": _int(rng, 129, 200)},
+        }
     if scenario_type == "HazardAtSideLane":
         return {
             "distance": _value(_int(rng, 41, 45)),
@@ -570,6 +681,21 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "bicycle_drive_distance": _value(_int(rng, 40, 101)),
             "bicycle_speed": _value(_int(rng, 6, 12)),
         }
+    if scenario_type == "HazardAtSideLaneTwoWays":
+        return {
+            "distance": _value(_int(rng, 41, 45)),
+            "frequency": _value(_int(rng, 75, 100)),
+            "bicycle_drive_distance": _value(_int(rng, 80, 116)),
+            "bicycle_speed": _value(_int(rng, 7, 11)),
+        }
+    if scenario_type == "VehicleOpensDoorTwoWays":
+        return {
+            "distance": _value(_int(rng, 37, 59)),
+            "direction": _value("right"),
+            "frequency": {"from": _int(rng, 30, 40), "to": _int(rng, 89, 98)},
+        }
+    if scenario_type == "InvadingTurn":
+        return {"distance": _value(_int(rng, 50, 60)), "offset": _value(f"{rng.uniform(0.18, 0.34):.2f}")}
     if scenario_type == "DynamicObjectCrossing":
         model = BLOCKER_MODELS[int(rng.integers(len(BLOCKER_MODELS)))]
         return {
@@ -584,6 +710,36 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 9, 10)),
             "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 28)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurn":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "SignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "NonSignalizedJunctionLeftTurnEnterFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 10)),
+            "source_dist_interval": {"from": _int(rng, 17, 19), "to": _int(rng, 26, 30)},
+        }
+    if scenario_type == "EnterActorFlow":
+        return {
+            "flow_speed": _value(_int(rng, 12, 14)),
+            "source_dist_interval": {"from": _int(rng, 25, 30), "to": _int(rng, 33, 39)},
+        }
+    if scenario_type == "CrossingBicycleFlow":
+        return {
+            "flow_speed": _value(_int(rng, 8, 9)),
+            "source_dist_interval": {"from": _int(rng, 13, 15), "to": _int(rng, 25, 30)},
+        }
+    if scenario_type == "SignalizedJunctionRightTurn":
+        return {
+            "flow_speed": _value(_int(rng, 10, 12)),
+            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 28, 38)},
         }
     if scenario_type == "NonSignalizedJunctionRightTurn":
         return {

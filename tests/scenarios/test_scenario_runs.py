@@ -21,6 +21,7 @@ from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioContext, Scenari
 from b2d_data.scenarios.placement import make_routes
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_runner import RouteRunner
+from b2d_data.sim import blueprints
 from b2d_data.sim.api import ActorKind, ActorSpec, TrafficLightState
 from b2d_data.sim.builtin.world import BuiltinSimulator
 
@@ -29,8 +30,23 @@ TYPES = (
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
     "YieldToEmergencyVehicle", "VanillaSignalizedTurnEncounterRedLight", "VanillaNonSignalizedTurnEncounterStopsign",
     "ParkingExit",
+    "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays", "HazardAtSideLaneTwoWays",
+    "VehicleOpensDoorTwoWays", "InvadingTurn",
+    "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn",
+    "SignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow",
+    "CrossingBicycleFlow",
 )  # fmt: skip
-OBSTACLES = ("Accident", "ParkedObstacleTwoWays", "HazardAtSideLane")
+OBSTACLES = ("Accident", "ParkedObstacleTwoWays", "HazardAtSideLane", "ParkedObstacle", "AccidentTwoWays",
+             "ConstructionObstacle", "ConstructionObstacleTwoWays", "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays",
+             "InvadingTurn")  # fmt: skip
+#: Scenarios whose flow of vehicles crosses the route's junction.
+FLOWS = (
+    "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn", "NonSignalizedJunctionLeftTurn",
+    "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionLeftTurnEnterFlow",
+    "EnterActorFlow", "CrossingBicycleFlow",
+)  # fmt: skip
+#: Scenarios whose flow drives into the road the ego leaves the junction on.
+INTO_EGO_EXIT = ("SignalizedJunctionLeftTurnEnterFlow", "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow")
 
 
 @pytest.fixture(scope="module")
@@ -53,9 +69,12 @@ class Trace:
     ego_light_states: list = field(default_factory=list)
     leftover: int = 0
     ticks: int = 0
+    #: (type_id, road_id, lane_type, in a junction) of the scenario vehicles, sampled every 5 ticks
+    scenario_places: set = field(default_factory=set)
 
 
-def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600) -> Trace:
+def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600, on_tick=None) -> Trace:
+    """Drive a teleported ego along the route; ``on_tick(snapshot, dense, manager)`` sees every tick's snapshot."""
     dense = DenseRoute.from_route(town, route)
     with BuiltinSimulator(town, seed=0) as sim:
         first = dense.waypoints[0].transform
@@ -84,12 +103,17 @@ def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600) -> Trac
                 f = t.get_forward_vector()
                 sim.set_target_velocity(ego, Vector3D(f.x * speed, f.y * speed, 0.0))
             snap = sim.tick()
+            if on_tick is not None:
+                on_tick(snap, dense, manager)
             if tick == 0:
                 trace.ego_after_build = snap.actors[ego].location
             for a in snap.actors.values():
                 if a.role_name == SCENARIO_ROLE:
                     (trace.scenario_walkers if a.kind is ActorKind.WALKER else trace.scenario_vehicles).add(a.id)
                     trace.max_scenario_speed = max(trace.max_scenario_speed, a.speed())
+                    if a.kind is ActorKind.VEHICLE and tick % 5 == 0:
+                        wp = town.get_waypoint(a.location, lane_type=LaneType.DRIVING | LaneType.BIKING)
+                        trace.scenario_places.add((a.type_id, wp.road_id, wp.lane_type, wp.is_junction))
             lights = [i for i in snap.traffic_lights.values()
                       if any(w.road_id == dense.waypoints[index].road_id for w in i.stop_waypoints)]  # fmt: skip
             trace.ego_light_states.append(tuple(sorted(i.state for i in lights)))
@@ -104,7 +128,8 @@ def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600) -> Trac
 @pytest.mark.parametrize("scenario_type", TYPES)
 def test_scenario_runs_to_its_end_with_a_scripted_ego(town, scenario_type):
     route = make_routes(town, scenario_type, 1, seed=0)[0]
-    trace = run_scripted(town, route)
+    # slower through the merges, so that the flow (not pre-populated) reaches the exit road before the ego left
+    trace = run_scripted(town, route, speed=3.0 if scenario_type in INTO_EGO_EXIT else 8.0)
     assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS], trace.statuses
     assert trace.leftover == 0  # cleanup removed every scenario actor
     assert trace.hints_valid
@@ -122,8 +147,20 @@ def test_scenario_runs_to_its_end_with_a_scripted_ego(town, scenario_type):
         assert len(trace.scenario_walkers) == 1
     if scenario_type == "OppositeVehicleRunningRedLight":
         assert trace.max_scenario_speed == pytest.approx(60 / 3.6, abs=0.3)
-    if scenario_type in ("SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn"):
+    if scenario_type in FLOWS:
         assert len(trace.scenario_vehicles) >= 3  # a flow
+        assert any(in_junction for *_, in_junction in trace.scenario_places)  # that crosses the junction
+    if scenario_type in INTO_EGO_EXIT:
+        dense = DenseRoute.from_route(town, route)
+        inside = next(k for k, wp in enumerate(dense.waypoints) if wp.is_junction)
+        exit_road = next(wp.road_id for wp in dense.waypoints[inside:] if not wp.is_junction)
+        assert exit_road in {road for _, road, _, in_junction in trace.scenario_places if not in_junction}
+    if scenario_type == "CrossingBicycleFlow":
+        # bicycles (CARLA's bicycle blueprints, with their riders), riding the bike lane through the junction
+        assert {blueprints.find(t).base_type for t, *_ in trace.scenario_places} == {"bicycle"}
+        assert any(
+            lane_type & LaneType.BIKING and in_junction for _, _, lane_type, in_junction in trace.scenario_places
+        )
     if scenario_type == "VanillaSignalizedTurnEncounterRedLight":
         seen = [s for s in trace.ego_light_states if s]
         assert (TrafficLightState.RED,) in seen and any(TrafficLightState.GREEN in s for s in seen)
@@ -145,3 +182,127 @@ def test_the_expert_completes_one_route_per_family(town, scenario_type):
                              max_ticks=4000).run()  # fmt: skip
     infractions = {k: v for k, v in result.record.infractions.items() if v and k != lb.MIN_SPEED_INFRACTIONS}
     assert result.success, (result.record.status, infractions)
+
+
+# ------------------------------------------------------------------------------------------------ overtaking family
+
+
+def _left_of_route(dense, location) -> tuple[float, float]:
+    """(signed distance left of the route's centre line, lane width there) for a point (CARLA frame, y down)."""
+    wp = dense.waypoints[dense.closest_index(location)]
+    f = wp.transform.get_forward_vector()
+    dx, dy = location.x - wp.transform.location.x, location.y - wp.transform.location.y
+    return dx * f.y - dy * f.x, wp.lane_width
+
+
+def _heading_dot(dense, actor) -> float:
+    f = dense.waypoints[dense.closest_index(actor.location)].transform.get_forward_vector()
+    g = actor.transform.get_forward_vector()
+    return f.x * g.x + f.y * g.y
+
+
+@pytest.mark.parametrize("scenario_type", ("ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle",
+                                           "ConstructionObstacleTwoWays"))  # fmt: skip
+def test_obstacles_block_the_ego_lane_and_two_way_ones_get_an_opposite_flow(town, scenario_type):
+    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    static: dict[int, tuple[str, float]] = {}  # id -> (type id, how far its box reaches into the ego lane)
+    oncoming: set[int] = set()
+
+    def watch(snap, dense, manager):
+        for a in snap.actors.values():
+            if a.role_name != SCENARIO_ROLE:
+                continue
+            if a.speed() > 1.0 and _heading_dot(dense, a) < -0.9:
+                oncoming.add(a.id)
+            elif a.speed() < 0.1 and a.id not in static:
+                left, width = _left_of_route(dense, a.location)
+                static[a.id] = (a.type_id, width / 2.0 + a.bounding_box.extent.y - abs(left))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    in_lane = [t for t, reach in static.values() if reach > 0.3]
+    kinds = sorted(static[i][0] for i in static)
+    if scenario_type.startswith("Construction"):
+        # §2.2 #7: the board, 4 + 3 cones on the lane; the construction warning sign beside the road; debris
+        assert kinds.count("static.prop.constructioncone") == 7
+        props = {"static.prop.trafficwarning", "static.prop.warningconstruction", "static.prop.dirtdebris02"}
+        assert props <= set(kinds)
+        assert "static.prop.trafficwarning" in in_lane and in_lane.count("static.prop.constructioncone") == 7
+    elif scenario_type == "ParkedObstacle":
+        assert "static.prop.warningaccident" in kinds and len([t for t in in_lane if t.startswith("vehicle.")]) == 1
+    else:
+        assert sum(t.startswith("vehicle.") for t in in_lane) == 3  # police car and two crashed cars
+    if scenario_type.endswith("TwoWays"):
+        assert len(oncoming) >= 1, "no opposite flow"
+    else:
+        assert not oncoming
+
+
+def test_the_parked_car_opens_its_door_before_the_ego_reaches_it(town):
+    route = make_routes(town, "VehicleOpensDoorTwoWays", 1, seed=0)[0]
+    seen: dict[str, float] = {}
+
+    def watch(snap, dense, manager):
+        ego = next(a for a in snap.actors.values() if a.role_name == "hero")
+        for a in snap.actors.values():
+            if a.role_name == SCENARIO_ROLE and a.open_doors and "open_at" not in seen:
+                seen["open_at"] = ego.location.distance_2d(a.location)
+                seen["ahead"] = float(is_ahead(ego, a))
+                left, width = _left_of_route(dense, a.location)
+                # the box's edge on the door side (actor frame: y to the right, the car parks right of the route)
+                edge = left + a.bounding_box.extent.y - a.bounding_box.location.y
+                seen["reach"] = edge + width / 2.0
+                seen["doors"] = a.open_doors
+
+    def is_ahead(ego, other) -> bool:
+        f = ego.transform.get_forward_vector()
+        return f.x * (other.location.x - ego.location.x) + f.y * (other.location.y - ego.location.y) > 0
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    from b2d_data.sim.api import VehicleDoor
+
+    assert seen["doors"] == (VehicleDoor.FL,)  # the driver's door, on the traffic side
+    # TTA trigger (3 s, 10 m) at 8 m/s: the door opens ~24 m before the ego reaches the car
+    assert seen["ahead"] == 1.0 and 15.0 < seen["open_at"] < 32.0
+    # the open door (0.9 m) reaches into the ego's lane; the closed car only touches it (pushed in by ~0.36 m)
+    assert seen["reach"] > 0.8
+
+
+def test_the_invading_flow_enters_the_ego_lane_by_about_the_offset(town):
+    route = make_routes(town, "InvadingTurn", 1, seed=0)[0]
+    offset = float(route.scenarios[0].parameter("offset"))
+    invasion: dict[int, float] = {}
+
+    def watch(snap, dense, manager):
+        for a in snap.actors.values():
+            if a.role_name == SCENARIO_ROLE and a.speed() > 1.0 and _heading_dot(dense, a) < -0.95:
+                left, width = _left_of_route(dense, a.location)
+                # beyond the centre line into the ego's lane, once the car settled on its offset path
+                reach = width / 2.0 + a.bounding_box.extent.y - left
+                invasion[a.id] = max(invasion.get(a.id, -9.0), reach - (a.bounding_box.extent.y - 0.7))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert invasion, "no flow car met the ego"
+    # each car reaches `offset` + (its half width − 0.7) m past the centre line (§2.2 #18)
+    assert all(v == pytest.approx(offset, abs=0.2) for v in invasion.values()), (offset, invasion)
+
+
+def test_the_two_way_bicycles_ride_and_the_opposite_traffic_thins_out(town):
+    route = make_routes(town, "HazardAtSideLaneTwoWays", 1, seed=0)[0]
+    frequency = float(route.scenarios[0].parameter("frequency"))
+    bicycle_speed = float(route.scenarios[0].parameter("bicycle_speed")) / 3.6
+    spawn_dists: list[float] = []
+    speeds: list[float] = []
+
+    def watch(snap, dense, manager):
+        for scenario in manager.scenarios:
+            spawn_dists.append(scenario.ctx.sim.background.settings.opposite_spawn_dist)
+        speeds.extend(a.speed() for a in snap.actors.values() if a.role_name == SCENARIO_ROLE and "bike" in a.type_id
+                      or a.role_name == SCENARIO_ROLE and a.base_type == "bicycle")  # fmt: skip
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert max(speeds) == pytest.approx(bicycle_speed, abs=0.3)
+    assert frequency in spawn_dists and spawn_dists[0] == 40.0

@@ -13,6 +13,12 @@ POLICE_CAR = "vehicle.dodge.charger_police_2020"
 AMBULANCE = "vehicle.ford.ambulance"
 #: Warning sign near an accident or a parked obstacle.
 WARNING_ACCIDENT = "static.prop.warningaccident"
+#: Construction site props (LB2.0 ConstructionObstacle): the sign at the road's edge, the board on the lane,
+#: the debris behind it and the cones.
+WARNING_CONSTRUCTION = "static.prop.warningconstruction"
+TRAFFIC_WARNING = "static.prop.trafficwarning"
+DEBRIS = "static.prop.dirtdebris02"
+CONSTRUCTION_CONE = "static.prop.constructioncone"
 #: Light state names (CARLA's VehicleLightState flags) for sirens and hazard blinkers.
 SIREN_LIGHTS = "Special1"
 HAZARD_LIGHTS = "LeftBlinker|RightBlinker"
@@ -38,6 +44,11 @@ def parked_car_ids() -> list[str]:
 def random_parked_car(rng: np.random.Generator) -> str:
     """A seeded pick among :func:`parked_car_ids`."""
     return _pick(parked_car_ids(), rng)
+
+
+def random_car_with_doors(rng: np.random.Generator) -> str:
+    """A seeded pick among the parked cars whose doors open (VehicleOpensDoorTwoWays)."""
+    return _pick([t for t in parked_car_ids() if blueprints.find(t).has_dynamic_doors], rng)
 
 
 def random_bicycle(rng: np.random.Generator) -> str:

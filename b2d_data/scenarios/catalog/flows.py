@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from b2d_data.format.transform import Location, Rotation, Transform, Vector3D
+from b2d_data.format.transform import Vector3D
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.road_geometry import lane_walk
+from b2d_data.scenarios.catalog.road_geometry import lane_walk, offset_transform
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, LaneFollowingAgent, PathTrack
 from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioSetupError
 from b2d_data.sim import blueprints
@@ -42,11 +43,6 @@ def flow_path(source: Waypoint, sink: Waypoint, max_length: float = 600.0) -> li
     return walk[: k + 1]
 
 
-def _spawn_transform(wp: Waypoint) -> Transform:
-    loc = wp.transform.location
-    return Transform(Location(loc.x, loc.y, loc.z + 0.2), Rotation(yaw=wp.transform.rotation.yaw))
-
-
 @dataclass
 class _FlowVehicle:
     actor_id: int
@@ -59,6 +55,9 @@ class ActorFlow:
     """A flow of cars along ``path`` (lane waypoints); ``constant_velocity`` selects the controller.
 
     ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``.
+    ``lateral_offset`` (m, right positive) makes the lane-following vehicles drive beside the lane centre;
+    ``lateral_margin`` widens their swept path when they look for vehicles to stop for; ``blueprint_ids`` replaces
+    the background cars the vehicles are drawn from (e.g. bicycles for a BicycleFlow).
     """
 
     def __init__(
@@ -71,6 +70,9 @@ class ActorFlow:
         sink_distance: float = 2.0,
         constant_velocity: bool = True,
         initial_actors: bool = False,
+        lateral_offset: float = 0.0,
+        lateral_margin: float = 0.3,
+        blueprint_ids: Sequence[str] | None = None,
     ) -> None:
         if len(path) < 2:
             raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
@@ -82,8 +84,12 @@ class ActorFlow:
         self.interval = (float(min(interval)), float(max(interval)))
         self.sink_distance = sink_distance
         self.constant_velocity = constant_velocity
+        self.lateral_offset = float(lateral_offset)
+        self.lateral_margin = float(lateral_margin)
         self.vehicles: list[_FlowVehicle] = []
-        self._cars = blueprints.background_car_ids()
+        self._cars = list(blueprint_ids) if blueprint_ids is not None else blueprints.background_car_ids()
+        if not self._cars:
+            raise ScenarioSetupError("an actor flow needs at least one blueprint to draw its vehicles from")
         self._gap = self._draw_gap()
         self._last_spawned: int | None = None
         self._initial = initial_actors
@@ -102,7 +108,7 @@ class ActorFlow:
 
     def _spawn_at(self, index: int) -> int | None:
         wp = self.waypoints[index]
-        actor_id = self.sim.try_spawn_actor(self._spec(), _spawn_transform(wp))
+        actor_id = self.sim.try_spawn_actor(self._spec(), offset_transform(wp, lateral=self.lateral_offset, z=0.2))
         if actor_id is None:
             return None
         rest = self.waypoints[index:]
@@ -130,7 +136,8 @@ class ActorFlow:
                 actor_id, Vector3D(math.cos(yaw) * self.speed, math.sin(yaw) * self.speed, 0.0)
             )
         else:
-            agent = LaneFollowingAgent(self.sim, actor_id, rest, self.speed)
+            agent = LaneFollowingAgent(self.sim, actor_id, rest, self.speed, lateral_offset=self.lateral_offset,
+                                       lateral_margin=self.lateral_margin)
         self.vehicles.append(_FlowVehicle(actor_id, agent))
         return actor_id
 

@@ -1,13 +1,21 @@
-"""HazardAtSideLane (§2.2 #11): two slow bicycles ride at the right edge of the ego's lane on a multi-lane road."""
+"""Two slow bicycles ride at the right edge of the ego's lane: HazardAtSideLane (§2.2 #11, multi-lane road) and
+HazardAtSideLaneTwoWays (§2.2 #12, two-way road: the bicycles are passed through the opposite lane)."""
 
 from __future__ import annotations
 
 import logging
 
 from b2d_data.format.transform import Transform
+from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.actor_choices import random_bicycle
-from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform, same_direction_driving_neighbour
+from b2d_data.scenarios.catalog.road_geometry import (
+    move_along,
+    offset_transform,
+    opposite_driving_neighbour,
+    same_direction_driving_neighbour,
+)
 from b2d_data.scenarios.controllers import LaneFollowingAgent, follow_lane, park
+from b2d_data.scenarios.criteria import SWITCH_WRONG_DIRECTION
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DistanceTrigger, DriveDistance, Timer, is_in_front
 from b2d_data.sim.api import ScenarioHint, Snapshot
@@ -41,11 +49,7 @@ class HazardAtSideLane(Scenario):
         second = move_along(first, self.bicycle_gap) if first is not None else None
         if first is None or second is None or first.is_junction or second.is_junction:
             raise ScenarioSetupError(f"{self.name}: no junction-free lane {self.distance + 9:.0f} m after the trigger")
-        if same_direction_driving_neighbour(first, "left") is None:
-            raise ScenarioSetupError(
-                f"{self.name}: layout 'multi_lane' missing: no same-direction driving lane left of road "
-                f"{first.road_id} lane {first.lane_id} to pass the bicycles"
-            )
+        self.check_layout(first)
         self._waypoints = (first, second)
         self.bicycles: list[int] = []
         self._agents: list[LaneFollowingAgent] = []
@@ -54,6 +58,22 @@ class HazardAtSideLane(Scenario):
         self._capped = False
         self._passed = False
         self._after = DriveDistance(self.end_distance)
+
+    def check_layout(self, first: Waypoint) -> None:
+        """Needs a same-direction driving lane left of the first bicycle to pass them."""
+        if same_direction_driving_neighbour(first, "left") is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'multi_lane' missing: no same-direction driving lane left of road "
+                f"{first.road_id} lane {first.lane_id} to pass the bicycles"
+            )
+
+    def react(self) -> None:
+        """5 s after the ego came within 50 m of the first bicycle: cap the background's speed."""
+        self.ctx.sim.background.set_max_speed(self.max_speed / 3.6)
+
+    def unreact(self) -> None:
+        """Undo :meth:`react` at the end."""
+        self.ctx.sim.background.set_max_speed(None)
 
     def _lateral(self, width: float) -> float:
         return self.offset_fraction * width / 2.0
@@ -92,7 +112,7 @@ class HazardAtSideLane(Scenario):
         target = first.location if first is not None else self._waypoints[0].transform.location
         if not self._capped and self._approach.check(ego, target) and self._wait.check(snapshot):
             self._capped = True
-            self.ctx.sim.background.set_max_speed(self.max_speed / 3.6)
+            self.react()
         if not self._passed:
             self._passed = last is None or is_in_front(ego, last)
             if not self._passed:
@@ -100,10 +120,10 @@ class HazardAtSideLane(Scenario):
         return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
 
     def on_end(self) -> None:
-        """Lift the speed cap and the extra space."""
+        """Undo the reaction and the extra space."""
         bg = self.ctx.sim.background
         if self._capped:
-            bg.set_max_speed(None)
+            self.unreact()
         if self._agents:
             bg.change_road_behavior(extra_space=0.0)
 
@@ -112,3 +132,38 @@ class HazardAtSideLane(Scenario):
         if not self.bicycles:
             return None
         return ScenarioHint(self.xml_type, self.bicycles[0], self.bicycles[-1], direction="right")
+
+
+@register
+class HazardAtSideLaneTwoWays(HazardAtSideLane):
+    """The bicycles of :class:`HazardAtSideLane` on a two-way road (§2.2 #12).
+
+    5 s after the ego came within 50 m of the first bicycle the wrong-direction check is switched off and the
+    opposite background spawns every ``frequency`` m (sparser); both are restored at the end (spawn distance 40 m).
+    """
+
+    xml_type = "HazardAtSideLaneTwoWays"
+    #: The opposite background's spawn distance outside the scenario (LB2.0's default).
+    opposite_spawn_dist = 40.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.frequency = ctx.value("frequency", 100.0)
+
+    def check_layout(self, first: Waypoint) -> None:
+        """Needs an opposite driving lane left of the first bicycle."""
+        if opposite_driving_neighbour(first) is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road "
+                f"{first.road_id} lane {first.lane_id} to pass the bicycles"
+            )
+
+    def react(self) -> None:
+        """Allow the wrong direction and thin out the opposite background."""
+        self.request_switch(SWITCH_WRONG_DIRECTION, False)
+        self.ctx.sim.background.change_opposite_behavior(spawn_dist=self.frequency)
+
+    def unreact(self) -> None:
+        """Restore the opposite background's spacing and the wrong-direction test."""
+        self.ctx.sim.background.change_opposite_behavior(spawn_dist=self.opposite_spawn_dist)
+        self.request_switch(SWITCH_WRONG_DIRECTION, True)

@@ -1,11 +1,11 @@
-"""Turns through crossing traffic (§2.2 #23-#28): SignalizedJunctionLeftTurn, NonSignalizedJunctionRightTurn.
+"""Turns through crossing traffic (§2.2 #23, #25, #27, #28): the signalised and unsignalised left and right turns.
 
 A constant-speed :class:`~b2d_data.scenarios.catalog.flows.ActorFlow` crosses the junction straight; the ego
 must find a gap. Left turn: the flow comes from the opposite entry (a random lane of it), its source
-``4 × flow_speed`` m before the junction and its sink ``2.5 × flow_speed`` m after; on signalised junctions the
-ego's light is red for 5 s while the flow's is green, then both are green. Right turn: the flow comes from the
-left entry's rightmost lane, ``5 × flow_speed`` m before to ``3 × flow_speed`` m after, pre-populated. Both end
-10 m after the ego left the junction, or after 240 s.
+``4 × flow_speed`` m before the junction and its sink ``2.5 × flow_speed`` m after. Right turn: the flow comes from
+the left entry's rightmost lane, ``5 × flow_speed`` m before to ``3 × flow_speed`` m after, pre-populated. On
+signalised junctions the ego's light is red for 5 s while the flow's is green, then both are green; on unsignalised
+ones the background stops the junction's other entries. All end 10 m after the ego left the junction, or after 240 s.
 """
 
 from __future__ import annotations
@@ -23,7 +23,13 @@ from b2d_data.scenarios.catalog.junctions import (
     lights_of_lane,
     rightmost_driving,
 )
-from b2d_data.scenarios.catalog.road_geometry import connection, entries_from, same_direction_lanes
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    connection,
+    entries_from,
+    flow_into_exit,
+    same_direction_lanes,
+)
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
 from b2d_data.sim.api import Snapshot
@@ -40,6 +46,7 @@ class JunctionFlowTurn(JunctionScenario):
     initial_actors: ClassVar[bool] = False
     signalized: ClassVar[bool] = True
     end_distance: ClassVar[float] = 10.0
+    green_light_delay: ClassVar[float] = 5.0
     default_interval: ClassVar[tuple[float, float]] = (25.0, 50.0)
 
     def __init__(self, ctx: ScenarioContext) -> None:
@@ -54,18 +61,18 @@ class JunctionFlowTurn(JunctionScenario):
         self.sink_distance = self.sink_factor * self.flow_speed
         options = []
         for entry in self.entry_choices(entries):
-            straight = connection(self.lanes, entry, "straight")
-            if straight is None:
+            conn = self.flow_connection(entry)
+            if conn is None:
                 continue
             try:
-                path = junction_flow_path(straight, self.source_factor * self.flow_speed, self.sink_distance)
+                path = junction_flow_path(conn, self.source_factor * self.flow_speed, self.sink_distance)
             except ScenarioSetupError:
                 continue
             options.append((entry, path))
         if not options:
             raise ScenarioSetupError(
-                f"{self.name}: layout missing: no {self.flow_direction} entry of junction {self.junction.id} goes "
-                f"straight on for {self.sink_distance:.0f} m"
+                f"{self.name}: layout missing: no {self.flow_direction} entry of junction {self.junction.id} "
+                f"{self.flow_move} for {self.sink_distance:.0f} m"
             )
         self.source_entry, self.path = self.pick(options)
         self.source, self.sink = self.path[0], self.path[-1]
@@ -78,6 +85,15 @@ class JunctionFlowTurn(JunctionScenario):
         """The entry lanes the flow may use."""
         return entries
 
+    @property
+    def flow_move(self) -> str:
+        """What the flow does through the junction, for error messages."""
+        return "goes straight on"
+
+    def flow_connection(self, entry: Waypoint) -> JunctionLane | None:
+        """The flow's way through the junction from ``entry`` (straight on), None if there is none."""
+        return connection(self.lanes, entry, "straight")
+
     def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
         """Which of the usable entries (with their flow paths) the flow takes."""
         return options[0]
@@ -85,9 +101,21 @@ class JunctionFlowTurn(JunctionScenario):
     def prepare_background(self) -> None:
         """Background-traffic hooks at the trigger."""
 
+    def build(self) -> None:
+        """Check that a signalised version's junction has lights."""
+        if self.signalized:
+            self.require_lights(self.ctx.sim.snapshot())
+
     def light_phases(self, snapshot: Snapshot) -> LightSchedule | None:
-        """Forced light states (signalised version only)."""
-        return None
+        """Signalised versions: ego red and flow green for 5 s, then both green; others red."""
+        if not self.signalized:
+            return None
+        lights = self.require_lights(snapshot)
+        ego_lights = lights_of_lane(lights, self.ego_entry)
+        flow_lights = lights_of_lane(lights, self.source_entry)
+        first = light_states(lights, flow_lights)
+        second = light_states(lights, [*ego_lights, *flow_lights])
+        return LightSchedule(self.ctx.sim, [(first, self.green_light_delay), (second, None)])
 
     def start(self, snapshot: Snapshot) -> None:
         """Prepare the junction, start the flow and the light schedule."""
@@ -121,43 +149,27 @@ class JunctionFlowTurn(JunctionScenario):
             self.lights.release()
 
 
-@register
-class SignalizedJunctionLeftTurn(JunctionFlowTurn):
-    """Left turn across an oncoming flow at a signalised junction (§2.2 #23)."""
+class LeftTurnAcrossFlow(JunctionFlowTurn):
+    """Left turn across an oncoming flow (§2.2 #23, #25); the signalised version forces the lights."""
 
-    xml_type = "SignalizedJunctionLeftTurn"
     required_turn = ("left",)
     flow_direction = "opposite"
     source_factor = 4.0
     sink_factor = 2.5
-    green_light_delay = 5.0
 
     def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
         """A random lane among those facing the ego."""
         return options[int(self.ctx.rng.integers(len(options)))]
 
-    def build(self) -> None:
-        """Check that the junction is signalised."""
-        self.require_lights(self.ctx.sim.snapshot())
-
     def prepare_background(self) -> None:
-        """Clear the junction, remove the flow's lanes, pause the opposite traffic."""
+        """Clear the junction, remove the flow's lanes, pause the opposite traffic (unsignalised: stop entries)."""
         bg = self.ctx.sim.background
         bg.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.source),
-            remove_exits=same_direction_lanes(self.sink), stop_entries=False,
+            remove_exits=same_direction_lanes(self.sink), stop_entries=not self.signalized,
             extend_road_exit=self.sink_distance + 20.0,
         )  # fmt: skip
         bg.change_opposite_behavior(active=False)
-
-    def light_phases(self, snapshot: Snapshot) -> LightSchedule | None:
-        """Ego red and flow green for 5 s, then both green; others red."""
-        lights = self.require_lights(snapshot)
-        ego_lights = lights_of_lane(lights, self.ego_entry)
-        flow_lights = lights_of_lane(lights, self.source_entry)
-        first = light_states(lights, flow_lights)
-        second = light_states(lights, [*ego_lights, *flow_lights])
-        return LightSchedule(self.ctx.sim, [(first, self.green_light_delay), (second, None)])
 
     def on_end(self) -> None:
         """Also restore the opposite traffic."""
@@ -167,10 +179,53 @@ class SignalizedJunctionLeftTurn(JunctionFlowTurn):
 
 
 @register
-class NonSignalizedJunctionRightTurn(JunctionFlowTurn):
-    """Right turn into a flow coming from the left at an unsignalised junction (§2.2 #28)."""
+class SignalizedJunctionLeftTurn(LeftTurnAcrossFlow):
+    """Left turn across an oncoming flow at a signalised junction (§2.2 #23)."""
 
-    xml_type = "NonSignalizedJunctionRightTurn"
+    xml_type = "SignalizedJunctionLeftTurn"
+    signalized = True
+
+
+@register
+class NonSignalizedJunctionLeftTurn(LeftTurnAcrossFlow):
+    """Left turn across an oncoming flow at an unsignalised junction, other entries stopped (§2.2 #25)."""
+
+    xml_type = "NonSignalizedJunctionLeftTurn"
+    signalized = False
+
+
+class LeftTurnEnterFlow(LeftTurnAcrossFlow):
+    """Bench2Drive's left turn into a flow: the opposite flow turns right into the ego's exit road (§2.2 #24, #26)."""
+
+    @property
+    def flow_move(self) -> str:
+        """What the flow does through the junction, for error messages."""
+        return "turns right into the ego's exit road"
+
+    def flow_connection(self, entry: Waypoint) -> JunctionLane | None:
+        """The right turn from ``entry`` that ends on the ego's exit road."""
+        return flow_into_exit(self.lanes, entry, self.ego_exit)
+
+
+@register
+class SignalizedJunctionLeftTurnEnterFlow(LeftTurnEnterFlow):
+    """Left turn at a signalised junction, merging into the opposite flow turning right (§2.2 #24)."""
+
+    xml_type = "SignalizedJunctionLeftTurnEnterFlow"
+    signalized = True
+
+
+@register
+class NonSignalizedJunctionLeftTurnEnterFlow(LeftTurnEnterFlow):
+    """Left turn at an unsignalised junction, merging into the opposite flow turning right (§2.2 #26)."""
+
+    xml_type = "NonSignalizedJunctionLeftTurnEnterFlow"
+    signalized = False
+
+
+class RightTurnIntoFlow(JunctionFlowTurn):
+    """Right turn into a pre-populated flow from the left entry's rightmost lane (§2.2 #27, #28)."""
+
     required_turn = ("right",)
     flow_direction = "left"
     source_factor = 5.0
@@ -182,8 +237,24 @@ class NonSignalizedJunctionRightTurn(JunctionFlowTurn):
         return [rightmost_driving(entries[0])]
 
     def prepare_background(self) -> None:
-        """Clear the junction, remove the flow's entry lanes, stop the other entries."""
+        """Clear the junction, remove the flow's entry lanes; unsignalised: stop the other entries."""
         self.ctx.sim.background.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.source),
-            remove_exits=[], stop_entries=True, extend_road_exit=self.sink_distance + 20.0,
+            remove_exits=[], stop_entries=not self.signalized, extend_road_exit=self.sink_distance + 20.0,
         )  # fmt: skip
+
+
+@register
+class SignalizedJunctionRightTurn(RightTurnIntoFlow):
+    """Right turn into a flow coming from the left at a signalised junction (§2.2 #27)."""
+
+    xml_type = "SignalizedJunctionRightTurn"
+    signalized = True
+
+
+@register
+class NonSignalizedJunctionRightTurn(RightTurnIntoFlow):
+    """Right turn into a flow coming from the left at an unsignalised junction (§2.2 #28)."""
+
+    xml_type = "NonSignalizedJunctionRightTurn"
+    signalized = False

@@ -1,10 +1,15 @@
-"""Static obstacles on the ego's lane that must be overtaken (§2.2 #5–#10): Accident, ParkedObstacleTwoWays.
+"""Static obstacles on the ego's lane that must be overtaken (§2.2 #5–#10): ParkedObstacle(TwoWays),
+ConstructionObstacle(TwoWays), Accident(TwoWays).
 
 Shared mechanics (LB2.0 ``route_obstacles.py``): the obstacle stands ``distance`` m after the trigger point, pushed
 toward the ``direction`` side of the lane; a warning sign stands at the road's edge near the trigger point; at the
 trigger the background leaves the stretch up to the obstacle free; once the ego is within 50 m of the obstacle and
 5 s have passed, the scenario's own reaction starts (background speed cap, or the opposite flow on two-way roads);
 the scenario ends when the ego has passed a point 50 m beyond the last obstacle, or after the 240 s timeout.
+
+Each type combines an obstacle site (what stands on the lane: :class:`ParkedCarSite`, :class:`ConstructionSite`,
+:class:`AccidentSite`) with a reaction (multi-lane roads: :class:`SpeedCapObstacle`; two-way roads:
+:class:`OppositeFlowObstacle`).
 """
 
 from __future__ import annotations
@@ -15,10 +20,14 @@ from typing import ClassVar
 from b2d_data.format.transform import Transform
 from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import (
+    CONSTRUCTION_CONE,
+    DEBRIS,
     HAZARD_LIGHTS,
     POLICE_CAR,
     SIREN_LIGHTS,
+    TRAFFIC_WARNING,
     WARNING_ACCIDENT,
+    WARNING_CONSTRUCTION,
     random_parked_car,
 )
 from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
@@ -40,7 +49,7 @@ from b2d_data.scenarios.framework import (
     register,
 )
 from b2d_data.scenarios.triggers import DistanceTrigger, Timer, is_in_front
-from b2d_data.sim.api import ScenarioHint, SimulatorError, Snapshot
+from b2d_data.sim.api import ActorState, ScenarioHint, SimulatorError, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -125,16 +134,20 @@ class RoadObstacle(Scenario):
     def step(self, snapshot: Snapshot) -> None:
         """Per-tick work of the scenario's own actors (flows)."""
 
+    def should_react(self, snapshot: Snapshot, ego: ActorState) -> bool:
+        """Whether the reaction starts now: 5 s after the ego came within 50 m of :meth:`approach_actor_id`."""
+        watched = self.approach_actor_id()
+        actor = snapshot.actors.get(watched) if watched is not None else None
+        target = actor.location if actor is not None else self.obstacle_waypoint.transform.location
+        return self._approach.check(ego, target) and self._wait.check(snapshot)
+
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Approach → wait → react; SUCCESS once the ego is 50 m past the last obstacle."""
         ego = self.ctx.ego(snapshot)
         self.step(snapshot)
         if ego is None:
             return ScenarioStatus.RUNNING
-        watched = self.approach_actor_id()
-        actor = snapshot.actors.get(watched) if watched is not None else None
-        target = actor.location if actor is not None else self.obstacle_waypoint.transform.location
-        if not self.reacting and self._approach.check(ego, target) and self._wait.check(snapshot):
+        if not self.reacting and self.should_react(snapshot, ego):
             self.reacting = True
             self.react(snapshot)
         if self._end_transform is None:
@@ -143,73 +156,38 @@ class RoadObstacle(Scenario):
         return ScenarioStatus.SUCCESS if is_in_front(ego, self._end_transform) else ScenarioStatus.RUNNING
 
 
-@register
-class Accident(RoadObstacle):
-    """A police car and two crashed cars block the ego's lane of a multi-lane road (§2.2 #9)."""
+# ------------------------------------------------------------------------------------------------ reactions
 
-    xml_type = "Accident"
-    clear_extra = 36.0
-    side_offset = 0.3  # offset 0.6 × half lane width
-    first_gap = 10.0
-    second_gap = 6.0
+
+class SpeedCapObstacle(RoadObstacle):
+    """One-way multi-lane roads: the obstacle is passed in a same-direction lane; the background slows down."""
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.max_speed = ctx.value("speed", 60.0)
-        first = move_along(self.obstacle_waypoint, self.first_gap)
-        second = move_along(first, self.second_gap) if first is not None else None
-        if first is None or second is None or first.is_junction or second.is_junction:
-            raise ScenarioSetupError(f"{self.name}: the accident needs 16 m of junction-free lane after the police car")
-        self._car_waypoints = (first, second)
-        self.end_reference = second
-        self._crashed: list[int] = []
 
     def check_layout(self) -> None:
-        """Needs a same-direction driving lane on the other side to pass the accident."""
+        """Needs a same-direction driving lane on the other side to pass the obstacle."""
         other = "left" if self.direction == "right" else "right"
         if same_direction_driving_neighbour(self.obstacle_waypoint, other) is None:
             raise ScenarioSetupError(
                 f"{self.name}: layout 'multi_lane' missing: no same-direction driving lane to the {other} of the "
-                f"accident (road {self.obstacle_waypoint.road_id}, lane {self.obstacle_waypoint.lane_id})"
+                f"obstacle (road {self.obstacle_waypoint.road_id}, lane {self.obstacle_waypoint.lane_id})"
             )
 
-    def build(self) -> None:
-        """Warning sign, police car with its lights on, two crashed cars."""
-        self.spawn_warning_sign()
-        police = self.spawn_obstacle_vehicle(POLICE_CAR, self.obstacle_waypoint)
-        self.ctx.sim.set_light_state(police, SIREN_LIGHTS)
-        for wp in self._car_waypoints:
-            self._crashed.append(self.spawn_obstacle_vehicle(random_parked_car(self.ctx.rng), wp))
-        self.first_id, self.last_id = police, self._crashed[-1]
-
-    def approach_actor_id(self) -> int | None:
-        """The speed cap starts 5 s after the ego came within 50 m of the first crashed car."""
-        return self._crashed[0] if self._crashed else self.first_id
-
     def react(self, snapshot: Snapshot) -> None:
-        """Cap the background's speed around the accident."""
+        """Cap the background's speed around the obstacle."""
         self.ctx.sim.background.set_max_speed(self.max_speed / 3.6)
 
     def on_end(self) -> None:
         """Lift the speed cap."""
+        super().on_end()
         if self.reacting:
             self.ctx.sim.background.set_max_speed(None)
 
-    def hint(self) -> ScenarioHint | None:
-        """Police car → last crashed car, obstacle side."""
-        if self.first_id is None:
-            return None
-        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction)
 
-
-@register
-class ParkedObstacleTwoWays(RoadObstacle):
-    """A parked car with hazard lights blocks the ego's lane of a two-way road; an opposite flow must be gapped
-    (§2.2 #6)."""
-
-    xml_type = "ParkedObstacleTwoWays"
-    clear_extra = 20.0
-    side_offset = 0.35
+class OppositeFlowObstacle(RoadObstacle):
+    """Two-way roads: the obstacle is passed through the opposite lane, where an opposite flow must be gapped."""
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -223,13 +201,6 @@ class ParkedObstacleTwoWays(RoadObstacle):
                 f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road "
                 f"{self.obstacle_waypoint.road_id} lane {self.obstacle_waypoint.lane_id} at the obstacle"
             )
-
-    def build(self) -> None:
-        """Warning sign and the parked car with its hazard lights on."""
-        self.spawn_warning_sign()
-        car = self.spawn_obstacle_vehicle(random_parked_car(self.ctx.rng), self.obstacle_waypoint)
-        self.ctx.sim.set_light_state(car, HAZARD_LIGHTS)
-        self.first_id = car
 
     def _make_flow(self) -> ActorFlow | None:
         opposite = opposite_driving_neighbour(self.obstacle_waypoint)
@@ -262,6 +233,7 @@ class ParkedObstacleTwoWays(RoadObstacle):
 
     def on_end(self) -> None:
         """Stop the flow and restore the opposite traffic and the wrong-direction test."""
+        super().on_end()
         if self._flow is not None:
             self._flow.stop()
         if self.reacting:
@@ -271,8 +243,184 @@ class ParkedObstacleTwoWays(RoadObstacle):
                 log.warning("%s: could not restore opposite traffic: %s", self.name, exc)
             self.request_switch(SWITCH_WRONG_DIRECTION, True)
 
+
+# ------------------------------------------------------------------------------------------------ obstacle sites
+
+
+class ParkedCarSite(RoadObstacle):
+    """A parked car with its hazard lights on, pushed 35 % of the lane width to the obstacle side (§2.2 #5, #6)."""
+
+    clear_extra = 20.0
+    side_offset = 0.35
+
+    def build(self) -> None:
+        """Warning sign and the parked car with its hazard lights on."""
+        self.spawn_warning_sign()
+        car = self.spawn_obstacle_vehicle(random_parked_car(self.ctx.rng), self.obstacle_waypoint)
+        self.ctx.sim.set_light_state(car, HAZARD_LIGHTS)
+        self.first_id = car
+
     def hint(self) -> ScenarioHint | None:
         """The parked car (no last actor), obstacle side."""
         if self.first_id is None:
             return None
         return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction)
+
+
+class AccidentSite(RoadObstacle):
+    """A police car with its lights on and two crashed cars 10 m and 16 m beyond it (§2.2 #9, #10)."""
+
+    clear_extra = 36.0
+    side_offset = 0.3  # offset 0.6 × half lane width
+    first_gap = 10.0
+    second_gap = 6.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        first = move_along(self.obstacle_waypoint, self.first_gap)
+        second = move_along(first, self.second_gap) if first is not None else None
+        if first is None or second is None or first.is_junction or second.is_junction:
+            raise ScenarioSetupError(f"{self.name}: the accident needs 16 m of junction-free lane after the police car")
+        self._car_waypoints = (first, second)
+        self.end_reference = second
+        self._crashed: list[int] = []
+
+    def build(self) -> None:
+        """Warning sign, police car with its lights on, two crashed cars."""
+        self.spawn_warning_sign()
+        police = self.spawn_obstacle_vehicle(POLICE_CAR, self.obstacle_waypoint)
+        self.ctx.sim.set_light_state(police, SIREN_LIGHTS)
+        for wp in self._car_waypoints:
+            self._crashed.append(self.spawn_obstacle_vehicle(random_parked_car(self.ctx.rng), wp))
+        self.first_id, self.last_id = police, self._crashed[-1]
+
+    def approach_actor_id(self) -> int | None:
+        """The reaction starts 5 s after the ego came within 50 m of the first crashed car."""
+        return self._crashed[0] if self._crashed else self.first_id
+
+    def hint(self) -> ScenarioHint | None:
+        """Police car → last crashed car, obstacle side."""
+        if self.first_id is None:
+            return None
+        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction)
+
+
+class ConstructionSite(RoadObstacle):
+    """A lane closed by a construction site (§2.2 #7, #8), LB2.0's ``_create_construction_setup``.
+
+    A traffic-warning board stands on the lane 5 m before the site, dirt debris 2 m after it; 4 cones run 2 m apart
+    along the lane edge on the passing side (0.85 × half the lane width out), then 3 cones 1 m apart back across the
+    lane toward the obstacle side: the closed lane's outline as the ego passes it.
+    The ego's lane is taken out of the background traffic while the scenario runs.
+    """
+
+    clear_extra = 20.0
+    trigger_distance = 30.0
+    board_before = 5.0
+    debris_after = 2.0
+    edge_cones = 4
+    edge_gap = 2.0
+    across_cones = 3
+    across_gap = 1.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        board = move_along(self.obstacle_waypoint, self.board_before, forward=False)
+        along = self.edge_cones * self.edge_gap
+        end = move_along(self.obstacle_waypoint, along)
+        if board is None or end is None or board.is_junction or end.is_junction:
+            raise ScenarioSetupError(
+                f"{self.name}: the construction site needs {self.board_before + along:.0f} m of junction-free lane"
+            )
+        self._board_waypoint = board
+        self.end_reference = end
+        self._removed_lane = False
+
+    def cone_transforms(self) -> list[Transform]:
+        """Where the cones stand: along the lane edge away from the obstacle side, then across toward that side."""
+        wp = self.obstacle_waypoint
+        edge = -self.sign * 0.85 * wp.lane_width / 2.0
+        out = []
+        current: Waypoint | None = wp
+        for _ in range(self.edge_cones):
+            current = move_along(current, self.edge_gap) if current is not None else None
+            if current is None:
+                break
+            out.append(offset_transform(current, lateral=edge))
+        last = current or wp
+        out += [offset_transform(last, lateral=edge + self.sign * self.across_gap * (k + 1))
+                for k in range(self.across_cones)]  # fmt: skip
+        return out
+
+    def build(self) -> None:
+        """Construction warning sign at the road's edge, the board, the debris and the cones."""
+        self.spawn_warning_sign(WARNING_CONSTRUCTION)
+        self.first_id = self.spawn(TRAFFIC_WARNING, offset_transform(self._board_waypoint, yaw=180.0))
+        debris = move_along(self.obstacle_waypoint, self.debris_after) or self.obstacle_waypoint
+        self.spawn(DEBRIS, offset_transform(debris))
+        for transform in self.cone_transforms():
+            self.last_id = self.spawn(CONSTRUCTION_CONE, transform)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the stretch and take the ego's lane out of the background traffic."""
+        super().start(snapshot)
+        self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
+        self._removed_lane = True
+
+    def on_end(self) -> None:
+        """Give the lane back to the background traffic."""
+        super().on_end()
+        if self._removed_lane:
+            self.ctx.sim.background.readd_road_lane(0)
+
+    def hint(self) -> ScenarioHint | None:
+        """Warning board → last cone, obstacle side."""
+        if self.first_id is None:
+            return None
+        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction)
+
+
+# ------------------------------------------------------------------------------------------------ the types
+
+
+@register
+class ParkedObstacle(ParkedCarSite, SpeedCapObstacle):
+    """A parked car with hazard lights blocks the ego's lane of a multi-lane road (§2.2 #5)."""
+
+    xml_type = "ParkedObstacle"
+
+
+@register
+class ParkedObstacleTwoWays(ParkedCarSite, OppositeFlowObstacle):
+    """A parked car with hazard lights blocks the ego's lane of a two-way road; an opposite flow must be gapped
+    (§2.2 #6)."""
+
+    xml_type = "ParkedObstacleTwoWays"
+
+
+@register
+class ConstructionObstacle(ConstructionSite, SpeedCapObstacle):
+    """A construction site closes the ego's lane of a multi-lane road (§2.2 #7)."""
+
+    xml_type = "ConstructionObstacle"
+
+
+@register
+class ConstructionObstacleTwoWays(ConstructionSite, OppositeFlowObstacle):
+    """A construction site closes the ego's lane of a two-way road; an opposite flow must be gapped (§2.2 #8)."""
+
+    xml_type = "ConstructionObstacleTwoWays"
+
+
+@register
+class Accident(AccidentSite, SpeedCapObstacle):
+    """A police car and two crashed cars block the ego's lane of a multi-lane road (§2.2 #9)."""
+
+    xml_type = "Accident"
+
+
+@register
+class AccidentTwoWays(AccidentSite, OppositeFlowObstacle):
+    """An accident blocks the ego's lane of a two-way road; an opposite flow must be gapped (§2.2 #10)."""
+
+    xml_type = "AccidentTwoWays"

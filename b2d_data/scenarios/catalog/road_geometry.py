@@ -243,6 +243,23 @@ def connection(lanes: Iterable[JunctionLane], entry: Waypoint, turn: str) -> Jun
     return min(matches, key=lambda lane: abs(lane.angle))
 
 
+def flow_into_exit(
+    lanes: Iterable[JunctionLane], entry: Waypoint, exit_: Waypoint | None, turn: str = "right"
+) -> JunctionLane | None:
+    """The connection with ``turn`` from ``entry``'s lane onto ``exit_``'s road and direction (its lane if
+    possible), or None."""
+    if exit_ is None:
+        return None
+    matches = [
+        lane for lane in lanes
+        if same_lane(lane.entry, entry) and lane.turn == turn and lane.exit.road_id == exit_.road_id
+        and lane.exit.lane_id * exit_.lane_id > 0
+    ]  # fmt: skip
+    if not matches:
+        return None
+    return min(matches, key=lambda lane: (lane.exit.lane_id != exit_.lane_id, abs(lane.angle)))
+
+
 def first_junction_ahead(wp: Waypoint, max_distance: float, step: float = 1.0) -> tuple[Waypoint, float] | None:
     """The first junction waypoint along the lane (straightest branches) and its distance, within ``max_distance``."""
     current = wp

@@ -1,0 +1,137 @@
+"""CrossingBicycleFlow (§2.2 #36): a flow of bicycles rides straight through the junction on a bike lane while the
+ego turns across it.
+
+The bicycles (CARLA's bicycle blueprints, each with its rider) ride from ``start_actor_flow`` on the bike lane
+through the junction to 40 m past its exit at ``flow_speed`` m/s, ignoring lights, the path pre-populated, a new
+one once the last has ridden a gap drawn from ``source_dist_interval``. On a signalised junction the ego's light is
+red for 5 s, then green (the others red). The background clears the junction and stops its entries; unlike LB2.0
+the route sources are off while the bicycles ride. The scenario ends when the ego leaves the junction, or after
+240 s.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import ClassVar
+
+from b2d_data.format.transform import Location
+from b2d_data.maps import LaneType, Map, Waypoint
+from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.junctions import JunctionScenario, LightSchedule, light_states, lights_of_lane
+from b2d_data.scenarios.catalog.road_geometry import lane_walk
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import WaitEndIntersection
+from b2d_data.sim import blueprints
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+#: The bicycle path continues this far past the junction exit (m).
+PAST_EXIT = 40.0
+#: The longest bike-lane walk from the source to the junction (m).
+MAX_APPROACH = 200.0
+
+
+def bicycle_path(source: Waypoint, junction_id: int | None = None, past_exit: float = PAST_EXIT) -> list[Waypoint]:
+    """Bike-lane waypoints 1 m apart from ``source`` straight through the next junction (or junction
+    ``junction_id``) to ``past_exit`` m beyond it; raises when the lane meets no such junction."""
+    walk = lane_walk(source, MAX_APPROACH + 100.0 + past_exit)
+    inside = [k for k, wp in enumerate(walk) if wp.is_junction and junction_id in (None, wp.junction_id)]
+    if not inside or inside[0] == 0:
+        where = "junction" if junction_id is None else f"junction {junction_id}"
+        raise ScenarioSetupError(
+            f"the bike lane from road {source.road_id} lane {source.lane_id} does not ride into the {where} ahead"
+        )
+    last = inside[0]
+    while last + 1 < len(walk) and walk[last + 1].is_junction:
+        last += 1
+    end = last + 1 + int(past_exit)
+    if end >= len(walk) or any(wp.is_junction for wp in walk[last + 1 : end + 1]):
+        raise ScenarioSetupError(
+            f"the bike lane from road {source.road_id} lane {source.lane_id} does not continue {past_exit:.0f} m "
+            "past the junction"
+        )
+    return walk[: end + 1]
+
+
+def bike_lane_at(town: Map, loc: Location) -> Waypoint | None:
+    """The bike-lane waypoint nearest ``loc`` (None if no bike lane lies within 3 m)."""
+    wp = town.get_waypoint(loc, lane_type=LaneType.BIKING)
+    if wp is None or wp.transform.location.distance_2d(loc) > 3.0:
+        return None
+    return wp
+
+
+@register
+class CrossingBicycleFlow(JunctionScenario):
+    """Turn across a flow of bicycles riding straight through the junction on a bike lane (§2.2 #36)."""
+
+    xml_type = "CrossingBicycleFlow"
+    green_light_delay: ClassVar[float] = 5.0
+    default_interval: ClassVar[tuple[float, float]] = (15.0, 30.0)
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.flow_speed = ctx.value("flow_speed", 10.0)
+        self.interval = ctx.interval("source_dist_interval", self.default_interval)
+        x, y = ctx.config.parameter("start_actor_flow", "x"), ctx.config.parameter("start_actor_flow", "y")
+        if x is None or y is None:
+            raise ScenarioSetupError(f"{self.name}: parameter <start_actor_flow x=... y=...> missing")
+        try:
+            loc = Location(float(x), float(y), float(ctx.config.parameter("start_actor_flow", "z") or 0.0))
+        except ValueError:
+            raise ScenarioSetupError(f"{self.name}: <start_actor_flow> has non-numeric coordinates") from None
+        source = bike_lane_at(ctx.map, loc)
+        if source is None:
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'bike_lane' missing: no bike lane at start_actor_flow ({loc.x:.1f}, {loc.y:.1f})"
+            )
+        try:
+            self.path = bicycle_path(source, self.junction.id)
+        except ScenarioSetupError as exc:
+            raise ScenarioSetupError(f"{self.name}: layout 'bike_lane' missing: {exc}") from None
+        self.flow: ActorFlow | None = None
+        self.lights: LightSchedule | None = None
+        self._left = WaitEndIntersection(ctx.map, self.junction.id)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the junction, stop its entries, start the pre-populated bicycle flow and the lights."""
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=[], remove_exits=[], stop_entries=True,
+            extend_road_exit=0.0,
+        )  # fmt: skip
+        # A deviation from LB2.0: no new route vehicles ahead of the ego while the bicycles ride. One spawned after
+        # the clearing that turns across the flow waits for a gap the dense flow never leaves, and the ego behind it.
+        self.ctx.sim.background.switch_route_sources(False)
+        bikes = blueprints.filter_ids("vehicle.*", base_type="bicycle")
+        self.flow = ActorFlow(
+            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True,
+            blueprint_ids=bikes,
+        )  # fmt: skip
+        self.flow.start()
+        lights = self.junction_lights(snapshot)
+        if lights:
+            ego_lights = lights_of_lane(lights, self.ego_entry)
+            self.lights = LightSchedule(self.ctx.sim, [
+                (light_states(lights, []), self.green_light_delay), (light_states(lights, ego_lights), None),
+            ])  # fmt: skip
+            self.lights.update(snapshot)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Ride the bicycles; SUCCESS once the ego left the junction."""
+        if self.flow is not None:
+            self.flow.update(snapshot)
+        if self.lights is not None:
+            self.lights.update(snapshot)
+        ego = self.ctx.ego(snapshot)
+        if ego is not None and self._left.check(ego):
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Remove the bicycles, release the lights and switch the route sources back on."""
+        if self.flow is not None:
+            self.flow.stop()
+            self.ctx.sim.background.switch_route_sources(True)
+        if self.lights is not None:
+            self.lights.release()

@@ -1,0 +1,110 @@
+"""EnterActorFlow (§2.2 #29): the ego enters a road through a junction and merges into fast traffic on it.
+
+One constant-speed :class:`~b2d_data.scenarios.catalog.flows.ActorFlow` per same-direction lane runs from
+``start_actor_flow`` (before the junction, on the flow's entry) through the junction to ``end_actor_flow`` (on the
+road the ego enters), pre-populated, including inside the junction. The background clears the junction, removes the
+flow's entry lanes, extends the road exit by the flow's after-junction length + 20 m and switches the route sources
+off. The scenario ends when the ego gets within 2 m of a flow's sink, or after 240 s.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import ClassVar
+
+from b2d_data.format.transform import Location
+from b2d_data.maps import Waypoint
+from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from b2d_data.scenarios.catalog.road_geometry import lane_walk, same_direction_lanes
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.sim.api import Snapshot
+
+log = logging.getLogger(__name__)
+
+#: The ego must get this close to a flow's sink (m).
+SINK_REACHED = 2.0
+
+
+def flow_lanes_path(ctx: ScenarioContext, source: Waypoint, sink: Waypoint) -> list[Waypoint]:
+    """Lane waypoints 1 m apart from ``source`` to ``sink`` as the leaderboard's planner routes them."""
+    pairs = ctx.map.interpolate_trajectory([source.transform.location, sink.transform.location])
+    path = [wp for wp, _ in pairs]
+    if len(path) < 2 or path[-1].transform.location.distance_2d(sink.transform.location) > 3.0:
+        raise ScenarioSetupError(
+            f"{ctx.config.name}: no lane path from the flow source on road {source.road_id} to its sink on road "
+            f"{sink.road_id}"
+        )
+    return path
+
+
+@register
+class EnterActorFlow(JunctionScenario):
+    """Merge into a dense flow on the road entered through the junction (§2.2 #29)."""
+
+    xml_type = "EnterActorFlow"
+    default_interval: ClassVar[tuple[float, float]] = (20.0, 40.0)
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.flow_speed = ctx.value("flow_speed", 15.0)
+        self.interval = ctx.interval("source_dist_interval", self.default_interval)
+        source = self._lane_point("start_actor_flow")
+        sink = self._lane_point("end_actor_flow")
+        # pair the lanes from the road centre outwards, as the two ends may have different lane ids
+        sources = sorted(same_direction_lanes(source), key=lambda wp: abs(wp.lane_id))
+        sinks = sorted(same_direction_lanes(sink), key=lambda wp: abs(wp.lane_id))
+        self.paths = [flow_lanes_path(ctx, a, b) for a, b in zip(sources, sinks)]
+        self.sources = sources[: len(self.paths)]
+        self.sinks = [path[-1] for path in self.paths]
+        after = lane_walk(self.ego_exit, 500.0) if self.ego_exit is not None else []
+        target = sink.transform.location
+        self.after_junction = next(
+            (float(k) for k, wp in enumerate(after) if wp.transform.location.distance_2d(target) < 4.0), 50.0
+        )
+        self.flows: list[ActorFlow] = []
+        self._done = False
+
+    def _lane_point(self, tag: str) -> Waypoint:
+        coords = [self.ctx.config.parameter(tag, axis) for axis in ("x", "y", "z")]
+        if coords[0] is None or coords[1] is None:
+            raise ScenarioSetupError(f"{self.name}: parameter <{tag} x=... y=...> missing")
+        try:
+            loc = Location(float(coords[0]), float(coords[1]), float(coords[2] or 0.0))
+        except ValueError:
+            raise ScenarioSetupError(f"{self.name}: parameter <{tag}> has non-numeric coordinates") from None
+        wp = self.ctx.map.get_waypoint(loc)
+        if wp is None or wp.transform.location.distance_2d(loc) > 3.0:
+            raise ScenarioSetupError(f"{self.name}: <{tag}> at ({loc.x:.1f}, {loc.y:.1f}) is not on a driving lane")
+        return wp
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Prepare the background and start one pre-populated flow per lane."""
+        bg = self.ctx.sim.background
+        bg.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=self.sources, remove_exits=[],
+            stop_entries=False, extend_road_exit=self.after_junction + 20.0,
+        )  # fmt: skip
+        bg.switch_route_sources(False)
+        for path in self.paths:
+            flow = ActorFlow(self.ctx.sim, self.ctx.rng, path, self.flow_speed, self.interval, initial_actors=True)
+            flow.start()
+            self.flows.append(flow)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Drive the flows; SUCCESS once the ego is within 2 m of a sink."""
+        for flow in self.flows:
+            flow.update(snapshot)
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        if any(ego.location.distance_2d(s.transform.location) < SINK_REACHED for s in self.sinks):
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Remove the flows and switch the route sources back on."""
+        for flow in self.flows:
+            flow.stop()
+        if self.flows:
+            self.ctx.sim.background.switch_route_sources(True)

@@ -1,0 +1,132 @@
+"""InvadingTurn (§2.2 #18): oncoming cars cut into the ego's lane on a two-way road; the ego keeps to the right.
+
+The flow source lies on the opposite lane ``distance + 30`` m ahead of the trigger; from it an opposite flow (a car
+every 40 m at the ego lane's speed limit) drives toward the trigger, offset by ``−(offset + lane width / 2 − 0.7)``
+m, so that it reaches ≈ ``offset`` m past the centre line into the ego's lane. Cones stand on the opposite lane
+every 5 m over ``distance / 2`` m, starting 15 m from the source toward the ego, 0.4 lane widths toward that lane's
+outer edge (the reason the flow drives so far left). The ego's lane and the normal opposite traffic are taken out
+of the background while the scenario runs; it ends when the ego has passed the source point, or after 240 s.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from b2d_data.format.transform import Transform
+from b2d_data.maps import Waypoint
+from b2d_data.scenarios.catalog.actor_choices import CONSTRUCTION_CONE
+from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
+from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform, opposite_driving_neighbour
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.triggers import is_in_front
+from b2d_data.sim.api import ScenarioHint, SimulatorError, Snapshot
+
+log = logging.getLogger(__name__)
+
+
+@register
+class InvadingTurn(Scenario):
+    """Cones on the opposite lane push an oncoming flow ``offset`` m into the ego's lane."""
+
+    xml_type = "InvadingTurn"
+    source_extra = 30.0
+    cone_start = 15.0
+    cone_gap = 5.0
+    cone_side = 0.4  # of the opposite lane's width, toward its outer edge
+    flow_gap = 40.0
+    #: The flow's offset keeps this much of the car inside its own lane before ``offset`` is added (LB2.0).
+    edge_margin = 0.7
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.distance = ctx.value("distance", 100.0)
+        self.offset = ctx.value("offset", 0.25)
+        reach = self.distance + self.source_extra
+        ahead = move_along(self.trigger_waypoint, reach)
+        if ahead is None:
+            raise ScenarioSetupError(f"{self.name}: the ego's lane ends within {reach:.0f} m of the trigger")
+        source = opposite_driving_neighbour(ahead)
+        sink = opposite_driving_neighbour(self.trigger_waypoint)
+        if source is None or sink is None:
+            wp = ahead if source is None else self.trigger_waypoint
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road {wp.road_id} "
+                f"lane {wp.lane_id} for the invading flow"
+            )
+        self.source_reference = ahead
+        self.flow_waypoints = flow_path(source, sink, reach + 30.0)
+        self.lateral = -(self.offset + source.lane_width / 2.0 - self.edge_margin)
+        self.cone_waypoints = self._cone_waypoints(source)
+        self.cones: list[int] = []
+        self._flow: ActorFlow | None = None
+        self._started = False
+
+    def _cone_waypoints(self, source: Waypoint) -> list[Waypoint]:
+        out = []
+        s = self.cone_start
+        while s <= self.cone_start + 0.5 * self.distance + 1e-6:
+            wp = move_along(source, s)
+            if wp is None:
+                break
+            out.append(wp)
+            s += self.cone_gap
+        if not out:
+            raise ScenarioSetupError(f"{self.name}: the opposite lane ends before its first cone")
+        return out
+
+    def cone_transforms(self) -> list[Transform]:
+        """Cones toward the opposite lane's outer edge, from the one nearest the source toward the ego."""
+        return [offset_transform(wp, lateral=self.cone_side * wp.lane_width) for wp in self.cone_waypoints]
+
+    def build(self) -> None:
+        """The cones."""
+        for transform in self.cone_transforms():
+            self.cones.append(self.spawn(CONSTRUCTION_CONE, transform))
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Empty the ego's lane and the opposite traffic, start the invading flow.
+
+        The flow cars stop only for a box inside their swept path (no margin): the ego keeping right leaves them
+        a few tenths of a metre, and with a margin each would stop before it and wait for ever.
+        """
+        bg = self.ctx.sim.background
+        bg.remove_road_lane(self.trigger_waypoint)
+        bg.change_opposite_behavior(active=False)
+        self._started = True
+        limit = self.ctx.map.speed_limit(self.trigger_waypoint)
+        self._flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.flow_waypoints, limit / 3.6,
+                               (self.flow_gap, self.flow_gap), constant_velocity=False, lateral_offset=self.lateral,
+                               lateral_margin=0.0)  # fmt: skip
+        self._flow.start()
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Drive the flow; SUCCESS once the ego has passed the flow's source point."""
+        if self._flow is not None:
+            self._flow.update(snapshot)
+        ego = self.ctx.ego(snapshot)
+        if ego is None:
+            return ScenarioStatus.RUNNING
+        return ScenarioStatus.SUCCESS if is_in_front(ego, self.source_reference.transform) else ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """Stop the flow, give the lanes back to the background."""
+        if self._flow is not None:
+            self._flow.stop()
+        if self._started:
+            bg = self.ctx.sim.background
+            bg.readd_road_lane(0)
+            try:
+                bg.change_opposite_behavior(active=True)
+            except SimulatorError as exc:
+                log.warning("%s: could not restore opposite traffic: %s", self.name, exc)
+
+    def hint(self) -> ScenarioHint | None:
+        """The cone nearest the ego first, the one nearest the source last, and the offset."""
+        if not self.cones:
+            return None
+        return ScenarioHint(self.xml_type, self.cones[-1], self.cones[0], offset=self.offset)
+
+    @property
+    def flow_actor_ids(self) -> list[int]:
+        """The live flow vehicles."""
+        return self._flow.actor_ids if self._flow is not None else []

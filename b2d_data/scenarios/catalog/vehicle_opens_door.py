@@ -1,0 +1,102 @@
+"""VehicleOpensDoorTwoWays (§2.2 #13): a car parked beside the ego's lane opens its door into it on a two-way road.
+
+The car (a model with doors that open) stands ``distance`` m ahead in the parking lane or shoulder on the ``direction``
+side, pushed toward the driving lane by (side-lane width − car half-width) / 4. When the ego's time to arrival at the
+lane point beside the car drops below 3 s (or it is within 10 m) the door on the traffic side opens and the background
+behind the ego stops; 5 s later the wrong-direction check is switched off and an opposite flow starts, as in
+ParkedObstacleTwoWays. The scenario ends 50 m past the car (or after 240 s); the background behind then resumes.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import ClassVar
+
+from b2d_data.maps import LaneType, Waypoint
+from b2d_data.scenarios.catalog.actor_choices import half_extent, random_car_with_doors
+from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
+from b2d_data.scenarios.catalog.road_geometry import neighbour, offset_transform
+from b2d_data.scenarios.controllers import park
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
+from b2d_data.scenarios.triggers import Timer, TimeToArrivalTrigger
+from b2d_data.sim.api import ActorState, ScenarioHint, Snapshot, VehicleDoor
+
+log = logging.getLogger(__name__)
+
+#: Side lanes a car can be parked in.
+SIDE_LANE_TYPES = LaneType.PARKING | LaneType.SHOULDER
+#: Narrower side lanes leave the parked car standing mostly in the driving lane.
+MIN_SIDE_LANE_WIDTH = 2.0
+
+
+def side_lane(wp: Waypoint, direction: str) -> Waypoint | None:
+    """The parking lane or wide shoulder next to ``wp`` on ``direction``, or None."""
+    other = neighbour(wp, direction)
+    if other is None or not other.lane_type & SIDE_LANE_TYPES or other.lane_width < MIN_SIDE_LANE_WIDTH:
+        return None
+    return other
+
+
+@register
+class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
+    """A parked car opens its door into the ego's lane; the ego overtakes it through the opposite lane."""
+
+    xml_type = "VehicleOpensDoorTwoWays"
+    clear_extra = 20.0
+    tta_time: ClassVar[float] = 3.0
+    tta_distance: ClassVar[float] = 10.0
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        side = side_lane(self.obstacle_waypoint, self.direction)
+        if side is None:
+            wp = self.obstacle_waypoint
+            raise ScenarioSetupError(
+                f"{self.name}: layout 'parking_lane' missing: no parking lane or shoulder at least "
+                f"{MIN_SIDE_LANE_WIDTH} m wide {self.direction} of road {wp.road_id} lane {wp.lane_id} at the car"
+            )
+        self.side_waypoint = side
+        self._door_trigger = TimeToArrivalTrigger(self.obstacle_waypoint.transform.location, self.tta_time,
+                                                  self.tta_distance)  # fmt: skip
+        self._flow_wait = Timer(self.wait_duration)
+        self.door_opened = False
+        self._stopped_back = False
+
+    def build(self) -> None:
+        """The parked car, pushed toward the driving lane, hand brake on."""
+        type_id = random_car_with_doors(self.ctx.rng)
+        half_width = half_extent(type_id)[1]
+        toward_road = -self.sign * (self.side_waypoint.lane_width - half_width) / 4.0
+        wp = self.side_waypoint
+        transform = offset_transform(wp, lateral=toward_road, z=0.2)
+        retries = [offset_transform(wp, lateral=toward_road, forward=f, z=0.2) for f in (1.0, 2.0, -1.0)]
+        self.first_id = self.spawn(type_id, transform, retries=retries)
+        park(self.ctx.sim, self.first_id)
+
+    def should_react(self, snapshot: Snapshot, ego: ActorState) -> bool:
+        """The door opens at the TTA trigger; the opposite flow starts 5 s later."""
+        if not self.door_opened and self._door_trigger.check(ego):
+            self.open_door()
+        return self.door_opened and self._flow_wait.check(snapshot)
+
+    def open_door(self) -> None:
+        """Open the traffic-side front door and stop the background behind the ego."""
+        if self.first_id is None:
+            return
+        door = VehicleDoor.FL if self.direction == "right" else VehicleDoor.FR
+        self.ctx.sim.open_door(self.first_id, door)
+        self.ctx.sim.background.stop_back_vehicles()
+        self.door_opened = self._stopped_back = True
+        log.debug("%s: door %s opened", self.name, door.name)
+
+    def on_end(self) -> None:
+        """Restore the flow's changes and let the background behind the ego drive again."""
+        super().on_end()
+        if self._stopped_back:
+            self.ctx.sim.background.start_back_vehicles()
+
+    def hint(self) -> ScenarioHint | None:
+        """The parked car (no last actor), on the ``direction`` side."""
+        if self.first_id is None:
+            return None
+        return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction)

@@ -39,8 +39,20 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+# The profile runs the route in this process: like a route process of a collection (whose environment
+# b2d_data.collection.layout.single_thread_environment sets), its BLAS pool must have one thread, and OpenBLAS reads
+# this when numpy loads. With a pool per core, LiDAR's small matrix products spin idle threads: 13 of its 36 CPU ms
+# per frame on the 2-core machine.
+for _key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_key, "1")
+
 from b2d_data.collection import job as job_module
-from b2d_data.collection.layout import auto_layout, count_gpus, single_thread_environment, single_thread_worker
+from b2d_data.collection.layout import (
+    auto_layout,
+    count_gpus,
+    single_thread_environment,
+    single_thread_worker,
+)
 from b2d_data.collection.plan import plan_collection
 
 #: Bench2Drive-full: 4.26 TB for about 2 million frames.

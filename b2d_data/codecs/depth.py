@@ -28,6 +28,8 @@ def depth_to_png_pixels(depth_m: np.ndarray) -> np.ndarray:
     while +inf would be 0, exactly as in the released data).
     """
     d = np.asarray(depth_m)
+    if d.dtype == np.uint8:
+        return d  # already the stored bytes (e.g. rounded by the renderer): conversion is the identity
     if d.dtype == np.float32 and d.ndim == 2 and d.size:
         # OpenCV's own conversion (what imwrite applied): 8x faster than the numpy below, same result.
         return cv2.add(d, 0.0, dtype=cv2.CV_8U)

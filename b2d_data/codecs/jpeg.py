@@ -7,6 +7,7 @@ import os
 import cv2
 import numpy as np
 
+from b2d_data.codecs._rgba import rgba_parent
 from b2d_data.codecs._source import Source, read_source, write_bytes
 from b2d_data.codecs.jpeg_gpu import nvjpeg_encoder
 from b2d_data.format.errors import B2DFormatError
@@ -43,7 +44,8 @@ def encode_jpeg(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
 def encode_jpeg_opencv(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
     """Encode with OpenCV on the CPU (BGR, the given quality, OpenCV's defaults otherwise)."""
     _check_rgb(rgb)
-    bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+    rgba = rgba_parent(rgb)
+    bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR) if rgba is None else cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGR)
     ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError(f"OpenCV could not encode a {rgb.shape} image as JPEG")

@@ -19,6 +19,8 @@ import threading
 
 import numpy as np
 
+from b2d_data.codecs._rgba import rgba_parent
+
 log = logging.getLogger(__name__)
 
 _NVJPEG_INPUT_RGBI = 5  # interleaved RGB
@@ -84,11 +86,15 @@ class NvJpegEncoder:
         """Encode an (H, W, 3) uint8 RGB image; the bytes are a baseline JPEG file."""
         torch, lib = self._torch, self._lib
         h, w = rgb.shape[:2]
+        rgba = rgba_parent(rgb)
         with self._lock:
             if self._device_buffer.numel() < rgb.nbytes:
                 self._device_buffer = torch.empty(rgb.nbytes, dtype=torch.uint8, device="cuda")
             device = self._device_buffer[: rgb.nbytes]
-            device.copy_(torch.from_numpy(np.ascontiguousarray(rgb).reshape(-1)))
+            if rgba is None:
+                device.copy_(torch.from_numpy(np.ascontiguousarray(rgb).reshape(-1)))
+            else:  # the renderer's RGBA: uploaded whole, the alpha dropped on the GPU rather than by a CPU copy
+                device.view(h, w, 3).copy_(torch.from_numpy(rgba).to("cuda")[..., :3])
             image = _Image()
             image.channel[0] = device.data_ptr()
             image.pitch[0] = 3 * w

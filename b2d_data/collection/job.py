@@ -86,6 +86,7 @@ class CollectConfig:
             width=self.width, height=self.height, top_down_width=self.width, top_down_height=self.height,
             lidar_azimuth_steps=self.lidar_azimuth_steps,
             radar_v004_mounts=FormatVersion(self.format_version) is FormatVersion.V004,
+            float_depth=FormatVersion(self.format_version).float_depth,  # else only the uint8 depth PNG is written
         )  # fmt: skip
 
     def resolved_encode_workers(self) -> int:

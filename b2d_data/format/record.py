@@ -12,7 +12,8 @@ class CameraFrame:
     """One camera's images at one frame.
 
     ``rgb`` is (H, W, 3) uint8 in **RGB** order. The dense labels exist for the six surround cameras only:
-    ``depth`` (H, W) float32 metres (linear, along the optical axis), ``semantic`` (H, W) uint8 CARLA tag
+    ``depth`` (H, W) float32 metres (linear, along the optical axis; or uint8 metres already rounded as the depth
+    PNG stores them, when only the PNG is written), ``semantic`` (H, W) uint8 CARLA tag
     ids, ``instance`` (H, W) uint16 object ids (0 = none; low/high byte go to the G/B channels on disk).
     """
 

@@ -287,6 +287,13 @@ class ClipWriter:
         lidar = _check_lidar(where, record.lidar)
         radar = _check_radar(where, record.radar)
         expert = _check_expert(where, record.expert_assessment)
+        if self._float_depth is not None:
+            for cam, frame in record.cameras.items():
+                if frame.depth is not None and frame.depth.dtype == np.uint8:
+                    raise ValueError(
+                        f"{where}: camera {cam}: {self.format_version.value} writes float depth npz files, "
+                        "but depth is uint8 (already rounded to whole metres); render float depth"
+                    )
         current = _Layout(cameras, lidar is not None, radar is not None, expert is not None)
         if self._layout is None:
             self._layout = current

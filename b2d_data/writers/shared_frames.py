@@ -83,10 +83,9 @@ class SharedSlot:
     def pack(self, arrays: list[np.ndarray]) -> list[SharedArray]:
         """Copy ``arrays`` into the slot and return their references."""
         refs, offset = [], 0
-        for arr in arrays:
-            src = np.ascontiguousarray(arr)
+        for src in arrays:
             dst = np.ndarray(src.shape, dtype=src.dtype, buffer=self.shm.buf, offset=offset)
-            dst[...] = src
+            dst[...] = src  # one copy, also of a strided view (the renderer's RGB is a view of its RGBA)
             refs.append(SharedArray(self.shm.name, offset, tuple(src.shape), src.dtype.str))
             offset += _aligned(src.nbytes)
         return refs

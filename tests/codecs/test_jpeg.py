@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
+from b2d_data.codecs._rgba import rgba_parent
 from b2d_data.codecs.jpeg import encode_jpeg, encode_jpeg_opencv, read_jpeg, read_quantization_tables, write_jpeg
 from b2d_data.format.errors import B2DFormatError
 
@@ -37,6 +38,21 @@ def test_rgb_is_stored_as_bgr() -> None:
     bgr = cv2.imdecode(np.frombuffer(encode_jpeg(red), np.uint8), cv2.IMREAD_COLOR)
     assert bgr[..., 2].mean() > 200 and bgr[..., 0].mean() < 30
     assert read_jpeg(encode_jpeg(red))[..., 0].mean() > 200
+
+
+def test_rgb_view_of_rgba_gives_the_same_file() -> None:
+    # The renderer's RGB is the first three channels of the RGBA it read back; OpenCV then converts RGBA → BGR in
+    # one pass, and the file must be byte for byte the one the contiguous RGB gives.
+    rgba = np.dstack([smooth_rgb(), np.full((36, 64), 255, np.uint8)])
+    view = rgba[..., :3]
+    assert rgba_parent(view) is rgba
+    assert encode_jpeg_opencv(view) == encode_jpeg_opencv(np.ascontiguousarray(view))
+    assert encode_jpeg(view) == encode_jpeg(np.ascontiguousarray(view))
+    # Views that are not the whole of a contiguous RGBA take the plain path (and still encode their own pixels).
+    for other in (smooth_rgb(), rgba[1:, :, :3], rgba[:, :, 1:], rgba[..., :3].copy()):
+        assert rgba_parent(other) is None
+    cropped = rgba[1:, :, :3]
+    assert encode_jpeg_opencv(cropped) == encode_jpeg_opencv(np.ascontiguousarray(cropped))
 
 
 def test_quality_is_20() -> None:

@@ -50,6 +50,12 @@ def test_same_tables_and_subsampling_as_opencv():
     assert _sampling(gpu) == _sampling(cpu) == [(2, 2), (1, 1), (1, 1)]  # 4:2:0
 
 
+def test_rgb_view_of_rgba_is_uploaded_whole():
+    img = _scene(3)
+    rgba = np.dstack([img, np.full(img.shape[:2], 255, np.uint8)])
+    assert encoder.encode(rgba[..., :3]) == encoder.encode(np.ascontiguousarray(img))
+
+
 def test_decoded_within_codec_noise_of_opencv():
     for seed in range(3):
         img = _scene(seed)

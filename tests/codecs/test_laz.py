@@ -49,6 +49,21 @@ def test_only_xyz_are_filled() -> None:
         assert not np.asarray(las[dim]).any(), dim
 
 
+@pytest.mark.parametrize("n", [0, 1, 500, 70_000])  # 70 000 points: two 50 000-point LAZ chunks
+def test_bytes_as_laspys_plain_assignment(n: int) -> None:
+    # The file is the one laspy writes when x, y, z are assigned to an empty LasData (how sweeps were encoded
+    # before the record was sized up front): the same header, points and compressed bytes.
+    pts = points(n)
+    header = laspy.LasHeader(point_format=0, version="1.2")
+    header.scales = np.full(3, 0.001)
+    header.offsets = pts.min(axis=0) if n else np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = pts[:, 0], pts[:, 1], pts[:, 2]
+    bio = io.BytesIO()
+    las.write(bio, do_compress=True, laz_backend=laspy.LazBackend.Lazrs)
+    assert encode_laz(pts) == bio.getvalue()
+
+
 def test_empty_cloud() -> None:
     back = read_laz(encode_laz(np.zeros((0, 3))))
     assert back.shape == (0, 3)

@@ -16,6 +16,7 @@ from b2d_data.codecs import (
     encode_instance_png,
     encode_semantic_png,
     instance_bgra,
+    instance_rgba,
     read_depth_png,
     read_instance_png,
     read_semantic_png,
@@ -54,6 +55,28 @@ def test_sub_filter_by_hand():
     # RGBA: the left neighbour is the same channel one pixel (4 bytes) earlier.
     px = np.array([[[1, 2, 3, 255], [4, 2, 1, 255]]], np.uint8)
     assert sub_filtered(px).tolist() == [[1, 1, 2, 3, 255, 3, 0, 254, 0]]
+
+
+def test_instance_pixels_by_hand():
+    # Tag 7 with id 0x1234 (4660) is R = 7, G = 0x34 (low byte), B = 0x12 (high byte), A = 255 in the file.
+    tags = np.array([[7, 0], [255, 11]], np.uint8)
+    ids = np.array([[0x1234, 0], [0xFFFF, 0x00FF]], np.uint16)
+    want = [[[7, 0x34, 0x12, 255], [0, 0, 0, 255]], [[255, 0xFF, 0xFF, 255], [11, 0xFF, 0x00, 255]]]
+    assert instance_rgba(tags, ids).tolist() == want
+    assert instance_bgra(tags, ids).tolist() == [[px[2::-1] + [255] for px in row] for row in want]
+    # Wider id types holding two-byte values give the same pixels; larger values are refused.
+    assert instance_rgba(tags, ids.astype(np.int64)).tolist() == want
+    with pytest.raises(ValueError, match="65535"):
+        instance_rgba(tags, ids.astype(np.int32) + 1)
+
+
+def test_instance_file_order_matches_the_channel_shuffle():
+    rng = np.random.default_rng(5)
+    tags = rng.integers(0, 256, (31, 47), dtype=np.uint8)
+    ids = rng.integers(0, 1 << 16, (31, 47), dtype=np.uint16)
+    rgba = instance_rgba(tags, ids)
+    assert rgba.dtype == np.uint8 and rgba.shape == (31, 47, 4) and rgba.flags.c_contiguous
+    assert np.array_equal(rgba, instance_bgra(tags, ids)[..., [2, 1, 0, 3]])
 
 
 def test_file_structure_is_plain_png():

@@ -115,6 +115,25 @@ def test_v004_adds_float_depth(tmp_path: Path, record_factory: RecordFactory) ->
     assert read_format_info(clip_dir).float_depth  # type: ignore[union-attr]
 
 
+def test_uint8_depth_writes_the_same_depth_pngs(tmp_path: Path, record_factory: RecordFactory) -> None:
+    # The renderer can hand over depth already rounded to the PNG's uint8 metres: same files as from float depth.
+    records = [record_factory(i) for i in range(2)]
+    rounded = [record_factory(i) for i in range(2)]
+    for rec in rounded:
+        for frame in rec.cameras.values():
+            if frame.depth is not None:
+                frame.depth = depth_to_png_pixels(frame.depth)
+    a, b = write_clip(tmp_path / "float", records), write_clip(tmp_path / "uint8", rounded)
+    pngs = sorted(p.relative_to(a) for p in a.glob("camera/depth_*/*.png"))
+    assert len(pngs) == 2 * len(SURROUND)
+    for rel in pngs:
+        assert (a / rel).read_bytes() == (b / rel).read_bytes()
+    with ClipWriter(tmp_path / "v004", CLIP, format_version=FormatVersion.V004) as writer:
+        with pytest.raises(ValueError, match="front: .*uint8"):  # no float depth to put in the npz files
+            writer.write(rounded[0])
+        writer.abort()
+
+
 def test_pool_writes_the_same_content(tmp_path: Path, record_factory: RecordFactory) -> None:
     records = [record_factory(i, seed=7) for i in range(4)]
     sync_dir = write_clip(tmp_path / "sync", records)

@@ -1,7 +1,8 @@
 """Camera renderer: one moderngl EGL context, one multi-render-target pass per camera.
 
-Each camera is drawn once into an RGBA8 colour target, an R32F planar-depth target, an R8UI semantic-tag target
-and an R16UI instance-id target, each read back straight into the array a :class:`CameraFrame` holds. The
+Each camera is drawn once into an RGBA8 colour target, an R32F planar-depth target (R8UI uint8 metres with
+``depth8``), an R8UI semantic-tag target and an R16UI instance-id target, each read back straight into the array a
+:class:`CameraFrame` holds. The
 projection is built from the camera's K exactly as ``CameraSpec.intrinsic`` gives it (principal point at the image
 centre), with image row 0 at the top, so a world point projected with K and the world→camera matrix lands on the
 pixel where it is drawn and every read-back is already in image order.
@@ -17,7 +18,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
 
-import cv2
 import moderngl
 import numpy as np
 
@@ -280,11 +280,10 @@ def noise_texture(size: int = 256, seed: int = 7) -> np.ndarray:
 class _Targets:
     """Colour (and, for labelled cameras, depth, tag and id) targets plus a depth buffer of one resolution."""
 
-    def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool) -> None:
+    def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool, depth8: bool) -> None:
         self.color = ctx.texture((width, height), 4, dtype="f1")
-        self.rgba = np.empty((height, width, 4), np.uint8)  # read-back buffer of the colour target
         # Unlabelled cameras (top-down) bind only the colour target: the other outputs are dropped unwritten.
-        self.depth = ctx.texture((width, height), 1, dtype="f4") if labels else None
+        self.depth = ctx.texture((width, height), 1, dtype="u1" if depth8 else "f4") if labels else None
         self.tags = ctx.texture((width, height), 1, dtype="u1") if labels else None
         self.ids = ctx.texture((width, height), 1, dtype="u2") if labels else None
         self.zbuf = ctx.depth_renderbuffer((width, height))
@@ -317,8 +316,12 @@ def _current(method: _F) -> _F:
 class Renderer:
     """Renders camera views of a static mesh (uploaded once) plus a per-frame dynamic mesh."""
 
-    def __init__(self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0) -> None:
+    def __init__(
+        self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False
+    ) -> None:
         self.ctx = create_gl_context()
+        # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
+        self.depth8 = depth8
         self.near = near
         self.far = far
         self.tile_size = tile_size
@@ -344,12 +347,12 @@ class Renderer:
         prog = self._programs.get(key)
         if prog is None:
             if key[0] == "sky":
-                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(key[1]), fragment_shader=shaders.SKY_FRAGMENT)
+                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(key[1]), fragment_shader=shaders.sky_fragment(self.depth8))
             else:
                 _, material, night, wet = key
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet),
-                    fragment_shader=shaders.scene_fragment(material, night, wet),
+                    fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8),
                 )
             _set(prog, "u_noise", 1)
             _set(prog, "u_lightmap", 0)
@@ -439,7 +442,7 @@ class Renderer:
         """The targets of the ``slot``-th view of a batch (created on first use, then reused every frame)."""
         key = (width, height, labels, slot)
         if key not in self._targets:
-            self._targets[key] = _Targets(self.ctx, width, height, labels)
+            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8)
         return self._targets[key]
 
     def _draw(self, view: CameraView, light: Lighting, uniforms: dict[str, object], slot: int = 0) -> _Targets:
@@ -501,7 +504,10 @@ class Renderer:
         lighting: Lighting,
         headlight: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> list[CameraFrame]:
-        """Draw each view and read back RGB (and depth / semantic / instance when ``labels``)."""
+        """Draw each view and read back RGB (and depth / semantic / instance when ``labels``).
+
+        Depth is float32 metres, or with ``depth8`` the uint8 metres the depth PNG stores (``depth_to_png_pixels``).
+        """
         uniforms = self._weather_uniforms(lighting, headlight)
         # Every view gets its own targets and all are drawn before any is read back: the rasteriser threads work
         # on one camera while this thread prepares the next, and read-backs do not stall between draws.
@@ -509,14 +515,20 @@ class Renderer:
         frames = []
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
-            # Reading RGBA and dropping alpha with OpenCV is about twice as fast as letting GL convert to RGB.
-            targets.fbo.read_into(targets.rgba, components=4, attachment=0)
-            rgb = cv2.cvtColor(targets.rgba, cv2.COLOR_RGBA2RGB)
+            # Reading RGBA is about twice as fast as letting GL convert to RGB. RGB is a view of a fresh RGBA array
+            # (each frame owns its pixels): the JPEG encoders drop the alpha in their own conversion, saving a copy.
+            rgba = np.empty((h, w, 4), np.uint8)
+            targets.fbo.read_into(rgba, components=4, attachment=0)
+            rgb = rgba[..., :3]
             if not view.labels:
                 frames.append(CameraFrame(rgb=rgb))
                 continue
-            depth = np.empty((h, w), np.float32)
-            targets.fbo.read_into(depth, components=1, attachment=1, dtype="f4")
+            if self.depth8:
+                depth = np.empty((h, w), np.uint8)
+                targets.fbo.read_into(depth, components=1, attachment=1, dtype="u1")
+            else:
+                depth = np.empty((h, w), np.float32)
+                targets.fbo.read_into(depth, components=1, attachment=1, dtype="f4")
             semantic = np.empty((h, w), np.uint8)
             targets.fbo.read_into(semantic, components=1, attachment=2, dtype="u1")
             instance = np.empty((h, w), np.uint16)

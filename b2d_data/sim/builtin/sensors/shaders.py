@@ -1,7 +1,8 @@
 """GLSL sources of the camera renderer (kept as Python strings so they ship inside the package).
 
 The scene program draws into four colour attachments at once: 0 = RGBA8 colour, 1 = R32F planar depth (metres
-along the optical axis), 2 = R8UI semantic tag, 3 = R16UI instance id. It is compiled once per material and weather
+along the optical axis; R8UI uint8 metres, rounded as the depth PNG stores them, when ``DEPTH8``), 2 = R8UI semantic
+tag, 3 = R16UI instance id. It is compiled once per material and weather
 variant (``#define`` switches) because a software rasteriser runs every branch of a shader for every pixel:
 specialised programs keep each pixel's work to what its material needs. The sky program fills the pixels no
 geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and the sky tag.
@@ -137,7 +138,7 @@ in vec3 v_alt;
 in vec2 v_xy;
 #endif
 layout(location = 0) out vec4 f_color;
-layout(location = 1) out float f_depth;
+DEPTH_OUT
 layout(location = 2) out uint f_tag;
 layout(location = 3) out uint f_instance;
 
@@ -159,7 +160,7 @@ void main() {
     col = mix(col, v_alt, smoothstep(0.66, 0.72, blob + 0.25 * u_puddles) * u_puddles);
 #endif
     f_color = vec4(clamp(col, 0.0, 1.0), 1.0);
-    f_depth = v_depth;
+    f_depth = depth_out(v_depth);
     f_tag = v_ids.x;
     f_instance = v_ids.y;
 }
@@ -175,9 +176,28 @@ def _header(material: int, night: bool, wet: bool) -> str:
     return f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
 
 
-def scene_fragment(material: int, night: bool, wet: bool) -> str:
-    """The scene fragment shader specialised for one material and weather variant."""
-    return _header(material, night, wet) + _SCENE_FRAGMENT
+# The depth target: float metres, or the uint8 the depth PNG stores. OpenCV's float → uint8 conversion is
+# saturate_cast<uchar>(cvRound(v)): round half to even, clip to [0, 255], and 0 for NaN, ±inf and values beyond
+# the int32 range (cvRound returns INT_MIN for them); the same float rounded here gives the same byte.
+_DEPTH_FLOAT = """layout(location = 1) out float f_depth;
+float depth_out(float d) { return d; }
+"""
+_DEPTH8 = """layout(location = 1) out uint f_depth;
+uint depth_out(float d) {
+    float r = roundEven(d);
+    bool outside = isnan(d) || isinf(d) || r >= 2147483648.0 || r < -2147483648.0;
+    return outside ? 0u : uint(clamp(r, 0.0, 255.0));
+}
+"""
+
+
+def _fragment(source: str, depth8: bool) -> str:
+    return source.replace("DEPTH_OUT", _DEPTH8 if depth8 else _DEPTH_FLOAT)
+
+
+def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False) -> str:
+    """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float)."""
+    return _header(material, night, wet) + _fragment(_SCENE_FRAGMENT, depth8)
 
 
 _SKY_VERTEX = """
@@ -222,12 +242,12 @@ uniform float u_sky_depth;
 uniform uint u_sky_tag;
 in vec3 v_color;
 layout(location = 0) out vec4 f_color;
-layout(location = 1) out float f_depth;
+DEPTH_OUT
 layout(location = 2) out uint f_tag;
 layout(location = 3) out uint f_instance;
 void main() {
     f_color = vec4(clamp(v_color, 0.0, 1.0), 1.0);
-    f_depth = u_sky_depth;
+    f_depth = depth_out(u_sky_depth);
     f_tag = u_sky_tag;
     f_instance = 0u;
 }
@@ -239,5 +259,6 @@ def sky_vertex(clouds: bool) -> str:
     return f"#version 330\n#define CLOUDS {int(clouds)}\n" + _SKY_VERTEX
 
 
-#: The sky fragment shader.
-SKY_FRAGMENT = "#version 330\n" + _SKY_FRAGMENT
+def sky_fragment(depth8: bool = False) -> str:
+    """The sky fragment shader (``depth8``: uint8 metres, not float, in the depth target)."""
+    return "#version 330\n" + _fragment(_SKY_FRAGMENT, depth8)

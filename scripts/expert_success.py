@@ -1,6 +1,6 @@
 """Expert success rates on the builtin simulator, physics only (no sensors, no clips).
 
-Generated mode (default): for each scenario of issue 4, ``--routes-per-scenario`` seeded routes spread over the
+Generated mode (default): for each scenario in SCENARIOS, ``--routes-per-scenario`` seeded routes spread over the
 generated town presets and the 23 weathers; prints a Markdown table of the success rate (route completed, no
 infraction other than min-speed) with the main failure reasons, and checks the â‰¥ 90 % bar per scenario.
 
@@ -9,8 +9,7 @@ infraction other than min-speed) with the main failure reasons, and checks the â
 Route-file mode: the routes of a Leaderboard route file whose scenario type is one of those and whose town has an
 OpenDRIVE file in ``--xodr-dir``; prints one row per route.
 
-    python scripts/expert_success.py --routes ../shared/data/bench2drive/bench2drive220.xml \\
-        --xodr-dir ../shared/data/carla_maps [--limit 3]
+    python scripts/expert_success.py --routes bench2drive220.xml [--limit 3]   # shipped routes on the shipped towns
 
 Every attempt is logged in ``OUT/run_log.jsonl`` and recorded in ``OUT/results/`` (``b2d-eval summary OUT/results``).
 Exit status: 0 when every scenario (generated mode) or every route (file mode) passes, else 1.
@@ -26,6 +25,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from b2d_data import data
 from b2d_data.collection.job import CollectConfig, JobResult
 from b2d_data.collection.plan import RouteTask, route_seed
 from b2d_data.collection.runner import run_tasks
@@ -51,7 +51,6 @@ SCENARIOS: tuple[str, ...] = (
     "PedestrianCrossing", "VehicleTurningRoutePedestrian", "VehicleTurningRoute", "ParkingCutIn", "StaticCutIn",
 )  # fmt: skip
 BAR = 0.9
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
 def generated_tasks(
@@ -168,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--routes-per-scenario", type=int, default=20)
     p.add_argument("--towns", default="all,urban", help="comma-separated generated presets (generated mode)")
     p.add_argument("--routes", type=Path, help="route file (route-file mode)")
-    p.add_argument("--xodr-dir", type=Path, default=SHARED / "carla_maps", help="folder of <Town>.xodr (file mode)")
+    p.add_argument("--xodr-dir", type=Path, default=data.carla_maps_dir(), help="folder of <Town>.xodr (file mode)")
     p.add_argument("--limit", type=int, default=None, help="run at most this many routes of the file")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=1, help="routes in parallel processes")
@@ -183,6 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.monotonic()
     errors: dict[str, str] = {}
     if args.routes is not None:
+        args.routes = data.shipped_or_given(args.routes)
         tasks = file_tasks(args.routes, args.xodr_dir, scenarios, args.seed, args.limit)
         if not tasks:
             print(

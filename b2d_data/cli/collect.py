@@ -4,7 +4,7 @@ Examples::
 
     b2d-collect --scenario Accident --n 50 --out data/
     b2d-collect --scenario HardBreakRoute --scenario ParkingExit --n 10 --workers 2 --out data/
-    b2d-collect --routes bench2drive220.xml --scenario Accident --xodr carla_maps/ --out b2d220/
+    b2d-collect --routes bench2drive220.xml --scenario Accident --out b2d220/    # the shipped routes and towns
     b2d-collect --scenario Accident --n 50 --out data/ --resume        # after a crash or kill -9
 
 Clips are named ``<Scenario>_<Town>_Route<id>_Weather<w>``; only routes the expert completes without infraction

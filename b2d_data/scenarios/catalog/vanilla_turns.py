@@ -48,8 +48,8 @@ class ScheduledLightsTurn(VanillaJunctionTurn):
         self.lights: LightSchedule | None = None
 
     def phases(self, lights: list[TrafficLightInfo]) -> list[tuple[dict[int, TrafficLightState], float | None]]:
-        """The schedule's (states, duration) phases for the junction's lights."""
-        raise NotImplementedError
+        """The schedule's (states, duration) phases for the junction's lights (each subclass gives its own)."""
+        raise TypeError(f"{type(self).__name__} must define phases(): the light schedule it runs")
 
     def build(self) -> None:
         """Check that the junction is signalised."""

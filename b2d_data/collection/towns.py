@@ -83,9 +83,9 @@ def preset_town_name(preset: str) -> str:
     try:
         return towngen.get_preset(preset).town
     except towngen.UnknownPresetError as exc:
-        from b2d_data.data import carla_maps_dir
+        from b2d_data.data import shipped_towns
 
-        shipped = ", ".join(sorted(p.stem for p in carla_maps_dir().glob("*.xodr")))
+        shipped = ", ".join(shipped_towns())
         raise TownError(f"{exc}; shipped CARLA towns: {shipped}") from None
 
 

@@ -12,6 +12,11 @@ def carla_maps_dir() -> Path:
     return _ROOT / "carla_maps"
 
 
+def shipped_towns() -> list[str]:
+    """Names of the shipped CARLA towns, sorted (``Town01`` …)."""
+    return sorted(p.stem for p in carla_maps_dir().glob("*.xodr"))
+
+
 def bench2drive_dir() -> Path:
     """The folder of the shipped Bench2Drive files (route XML, weather.xml, split lists, VAD's merged result)."""
     return _ROOT / "bench2drive"

@@ -6,7 +6,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from b2d_data.data import carla_maps_dir
+from b2d_data.data import carla_maps_dir, shipped_towns
 from b2d_data.maps.map import Map, load_opendrive
 
 #: Environment variable naming a folder of ``<Town>.xodr`` files (e.g. CARLA's OpenDRIVE maps).
@@ -46,7 +46,7 @@ def resolve_town(town: Map | str | os.PathLike[str]) -> Map:
         if (folder / f"{name}.xodr").is_file():
             return load_opendrive(folder / f"{name}.xodr")
     known = ", ".join(sorted(presets))
-    shipped = ", ".join(sorted(p.stem for p in carla_maps_dir().glob("*.xodr")))
+    shipped = ", ".join(shipped_towns())
     raise UnknownTownError(
         f"unknown town {name!r}: give an .xodr path, a generated preset ({known}), a shipped CARLA town ({shipped}), "
         f"or a town whose .xodr is in ${CARLA_MAPS_ENV}"

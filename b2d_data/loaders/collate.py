@@ -149,7 +149,7 @@ def collate(batch: Sequence[dict[str, Any] | None], pad: bool = False) -> Batch:
         if key in LIST_KEYS:
             out[key] = [dict(v) if isinstance(v, RawAnno) else v for v in values]
         elif key == "map_polylines":
-            out[key] = [[torch.from_numpy(np.ascontiguousarray(p)) for p in v] for v in values]
+            out[key] = _collate_ragged_list(values)
         elif key in VARIABLE_KEYS:
             if pad:
                 out[key], out[f"{key}_mask"] = _pad([np.asarray(v).view(np.ndarray) for v in values])

@@ -586,8 +586,11 @@ class Renderer:
                 targets.fbo.read_into(depth, components=1, attachment=1, dtype="f4")
             labels = np.empty((h, w, 4), np.uint8)
             targets.fbo.read_into(labels, components=4, attachment=2, dtype="u1")
-            semantic, instance = label_views(labels)
-            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance))
+            _, instance = label_views(labels)
+            # The tags once more, alone: the semantic PNG filters a contiguous plane ~9× faster than a strided view.
+            semantic = np.empty((h, w), np.uint8)
+            targets.fbo.read_into(semantic, components=1, attachment=2, dtype="u1")
+            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance, labels=labels))
         return frames
 
     def close(self) -> None:

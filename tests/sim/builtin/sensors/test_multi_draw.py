@@ -54,3 +54,18 @@ def test_multi_draw_matches_per_run_draws(street):
                 np.testing.assert_array_equal(a, b, err_msg=f"{name} {field}")
     # Every camera went through the multi-draw, and some material had several tile runs in one call.
     assert len(batched) == 7 and max(batched) > 1
+
+
+def test_packed_labels_are_the_semantic_and_instance_planes(street):
+    ego = actor_state(1, "vehicle.lincoln.mkz_2020", -30.0, 5.25, 0.0, role_name="hero")
+    other = actor_state(300, "vehicle.tesla.model3", -15.0, 5.25, 0.0)  # id 300: high byte 1, low byte 44
+    frame = street.capture(snapshot_of([ego, other], NOON), 1).cameras["front"]
+    labels = frame.labels
+    assert labels.shape == frame.semantic.shape + (4,) and frame.semantic.flags.c_contiguous
+    np.testing.assert_array_equal(labels[..., 0], frame.semantic)
+    np.testing.assert_array_equal(labels[..., 1].astype(np.uint16) | (labels[..., 2].astype(np.uint16) << 8),
+                                  frame.instance)  # fmt: skip
+    assert (labels[..., 3] == 255).all()
+    car = frame.instance == 300
+    assert car.sum() > 20 and (labels[car][:, 1:3] == (44, 1)).all()
+    assert street.capture(snapshot_of([ego, other], NOON), 1).cameras["top_down"].labels is None

@@ -27,6 +27,7 @@ _LASZIP_VLR_HEADER = struct.pack("<H16sHH32s", 0, b"laszip encoded", 22204, len(
 #: point source, all zero.
 _RECORD = np.dtype([("X", "<i4"), ("Y", "<i4"), ("Z", "<i4"), ("rest", "V8")])
 _SOFTWARE = b"b2d-data"
+_INT32_MAX = 2**31 - 1
 
 
 def _check_points(points: np.ndarray) -> np.ndarray:
@@ -64,7 +65,11 @@ def encode_laz(points: np.ndarray) -> bytes:
     offsets = xyz.min(axis=0) if count else np.zeros(3)
     record = np.zeros(count, _RECORD)
     for axis, name in enumerate("XYZ"):
-        record[name] = np.round((xyz[:, axis] - offsets[axis]) / LAZ_SCALE)
+        steps = np.round((xyz[:, axis] - offsets[axis]) / LAZ_SCALE)
+        if count and steps.max() > _INT32_MAX:  # numpy would wrap silently where laspy refused
+            raise OverflowError(f"LiDAR points span {steps.max() * LAZ_SCALE:.0f} m along {name.lower()}: more "
+                                f"than LAS's int32 coordinates hold at {LAZ_SCALE * 1e3:g} mm steps")  # fmt: skip
+        record[name] = steps
     if count:
         # As laspy bounds a file: the extreme stored integers, scaled back.
         mins = np.array([record[n].min() for n in "XYZ"]) * LAZ_SCALE + offsets

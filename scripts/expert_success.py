@@ -49,6 +49,8 @@ SCENARIOS: tuple[str, ...] = (
     "NoScenario", "VanillaNonSignalizedTurn", "VanillaSignalizedTurnEncounterGreenLight", "T_Junction",
     "OppositeVehicleTakingPriority", "ParkingCrossingPedestrian", "ControlLoss", "BlockedIntersection",
     "PedestrianCrossing", "VehicleTurningRoutePedestrian", "VehicleTurningRoute", "ParkingCutIn", "StaticCutIn",
+    # issue 13: successive lane changes
+    "SequentialLaneChange",
 )  # fmt: skip
 BAR = 0.9
 

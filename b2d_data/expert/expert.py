@@ -30,6 +30,7 @@ from b2d_data.expert.forecasting import (
 )
 from b2d_data.expert.hazard_heuristic import should_brake
 from b2d_data.expert.idm import idm_target_speed
+from b2d_data.expert.lane_change import LaneChangePlanner
 from b2d_data.expert.lateral_controller import LateralPIDController, heading_error, lookahead_index
 from b2d_data.expert.lights_and_signs import StopSignTracker, red_light_target_speed, stop_sign_centre
 from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
@@ -93,6 +94,7 @@ class Expert:
         self.longitudinal = make_longitudinal_controller(config)
         self.stop_signs = StopSignTracker(config)
         self.obstacles = ObstacleScenarioManager(config, map)
+        self.lane_changes = LaneChangePlanner()
         self.route: DenseRoute | None = None
         self.state: ExpertState | None = None
         self.blocked_ticks = 0
@@ -113,9 +115,10 @@ class Expert:
         yaw = math.radians(ego.transform.rotation.yaw)
         speed = ego.speed()
         index = route.update_index(position)
+        self.lane_changes.step(snapshot, ego, route)
 
         speed_limit = float(route.speed_limits[index])
-        target_speed = speed_limit * cfg.ratio_target_speed_limit
+        target_speed = min(speed_limit * cfg.ratio_target_speed_limit, self.lane_changes.speed_cap)
         if route.is_junction[index : index + cfg.points(cfg.junction_lookahead)].any():
             target_speed = min(target_speed, cfg.max_speed_in_junction)
 
@@ -144,8 +147,9 @@ class Expert:
         # which drives it into the very car it brakes for (HazardAtSideLane beside a slower car). Braking for the
         # obstacle in its own lane (Accident), it still edges into the shift as PDM-Lite does.
         blocker = snapshot.actors.get(hazards.vehicle_id) if hazards.vehicle_id is not None else None
-        holding = blocker is not None and still_before_shift(route, position, _xyz(blocker), cfg.hold_lane_tolerance,
-                                                              cfg.lateral_max_lookahead)
+        holding = (blocker is not None and not self.lane_changes.holding
+                   and still_before_shift(route, position, _xyz(blocker), cfg.hold_lane_tolerance,
+                                          cfg.lateral_max_lookahead))
         ahead_points = (route.original_points if holding else route.points)[index:]
         steer = round(self.lateral.step(ahead_points, speed, position[:2], yaw), 3)
         aim = ahead_points[lookahead_index(cfg, speed, ahead_points.shape[0])].copy()
@@ -215,7 +219,9 @@ class Expert:
         ego_loc = _xyz(ego)
         speed = ego.speed()
         index = route.index
-        near_lc = route.near_lane_change(speed)
+        # a lane change committed after waiting (lane_change.py) follows the cars ahead by IDM like any leader:
+        # forecast-only braking would keep it standing across both lanes
+        near_lc = route.near_lane_change(speed) and not self.lane_changes.committed
         frames = num_future_frames(cfg, near_lc)
         vehicles = [v for v in snapshot.vehicles() if v.id != ego.id and valid_vehicle(v)]
         nearby = [v for v in vehicles if np.linalg.norm(_xyz(v) - ego_loc) < cfg.detection_radius]
@@ -238,7 +244,8 @@ class Expert:
 
         ego_track = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
         skip = set() if near_lc else leading | trailing
-        checked = [v for v in nearby if v.id not in skip]
+        # in a committed route lane change the cars behind are left to brake for the ego (lane_change.py)
+        checked = [v for v in nearby if v.id not in skip and not self.lane_changes.yields_to_ego(ego, v)]
         tracks = forecast_vehicles(cfg, checked, frames, near_lc)
         by_id = {v.id: v for v in checked}
         speed_bicycle = speed_vehicle = speed_walker = initial_speed

@@ -21,7 +21,7 @@ import numpy as np
 from b2d_data.format.scenario_types import NO_SCENARIO, SCENARIO_TYPES
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
-from b2d_data.maps import LaneType, Map, Waypoint
+from b2d_data.maps import LaneChange, LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
 from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
 from b2d_data.scenarios.catalog.junctions import walk_back_to_source
@@ -93,6 +93,9 @@ class Candidate:
         """The planned route as lane waypoints 2 m apart and its trigger waypoint (None when the lanes end)."""
         spec = LAYOUTS[self.scenario_type]
         step = KEYPOINT_SPACING
+        if self.connection is None and spec.path_builder is not None:
+            built = spec.path_builder(self.trigger, rng, spec.length)
+            return (built, self.trigger) if built else None
         if self.connection is None:
             pre = float(rng.uniform(*spec.pre)) if spec.pre[1] > 0 else 0.0
             back = lane_walk(self.trigger, pre, forward=False, step=step) if pre > 0 else [self.trigger]
@@ -154,6 +157,8 @@ class Layout:
     departure: tuple[float, float] = (22.0, 30.0)
     trigger_offset: tuple[float, float] = (2.0, 8.0)
     junction_extra: Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]] | None = None
+    #: Straight layouts: builds the planned lane path from the trigger instead of following its lane (None: no path).
+    path_builder: Callable[[Waypoint, np.random.Generator, float], list[Waypoint] | None] | None = None
     #: Junction layouts: a further check of the connection in its town (e.g. an interurban road's speed limit).
     junction_ok: Callable[[Map, JunctionLane, list[JunctionLane]], bool] | None = None
 
@@ -414,6 +419,54 @@ def _interurban_two_flows(conn: JunctionLane, lanes: list[JunctionLane]) -> list
     return []
 
 
+def _lane_change_ok(wp: Waypoint, side: str) -> Waypoint | None:
+    """The same-direction driving lane on ``side`` when the marking allows changing into it."""
+    other = same_direction_driving_neighbour(wp, side)
+    allowed = LaneChange.LEFT if side == "left" else LaneChange.RIGHT
+    return other if other is not None and wp.lane_change & allowed else None
+
+
+#: SequentialLaneChange: metres before the first lane change and between the first and the second.
+SEQUENTIAL_RUNS = ((50.0, 60.0), (35.0, 45.0))
+#: SequentialLaneChange: the first keypoint after a lane change is this far ahead in the new lane. The planner
+#: lands 5 m ahead in the new lane (CARLA's ``trace_route``); a keypoint closer than that makes the next leg
+#: start behind where it landed, and the route would double back.
+SEQUENTIAL_CHANGE_REACH = 6.0
+
+
+def _sequential_lanes(trigger: Waypoint, rng: np.random.Generator, length: float) -> list[Waypoint] | None:
+    """Lane waypoints 2 m apart over ``length`` m that change lane twice (``SEQUENTIAL_RUNS``): first into a
+    neighbour (side drawn at random among those allowed), then on the same way if a further lane exists, else back.
+    Across each change the keypoints jump ``SEQUENTIAL_CHANGE_REACH`` m."""
+    step = KEYPOINT_SPACING
+    sides = ["left", "right"] if rng.uniform() < 0.5 else ["right", "left"]
+    path = [trigger]
+    travelled = 0.0
+    first: str | None = None
+    for change in range(3):
+        run = float(rng.uniform(*SEQUENTIAL_RUNS[change])) if change < 2 else length - travelled
+        walk = lane_walk(path[-1], run, step=step)
+        if (len(walk) - 1) * step < run - 1e-6 or any(wp.is_junction for wp in walk):
+            return None
+        path += walk[1:]
+        travelled += (len(walk) - 1) * step
+        if change == 2:
+            break
+        order = sides if first is None else [first, "right" if first == "left" else "left"]
+        target = None
+        for side in order:
+            target = _lane_change_ok(path[-1], side)
+            if target is not None:
+                first = first or side
+                break
+        ahead = move_along(target, SEQUENTIAL_CHANGE_REACH, step=step) if target is not None else None
+        if ahead is None or ahead.is_junction:
+            return None
+        path.append(ahead)
+        travelled += SEQUENTIAL_CHANGE_REACH
+    return path
+
+
 #: Highways are at least this fast (km/h); CARLA's Town04/06 highways are 90, generated ones 90–100.
 HIGHWAY_MIN_LIMIT = 80.0
 #: Largest heading change (deg) from an on-ramp's entry to the lane it merges into (Town04's curved ramps: ~50).
@@ -568,6 +621,9 @@ LAYOUTS: dict[str, Layout] = {
         "interurban", "an unsignalised junction where the route turns left from a side road onto a road faster than "
         "65 km/h, with a left entry going straight on", turns=("left",), signalized=False,
         junction_extra=_interurban_two_flows, junction_ok=_onto_interurban, departure=(70.0, 85.0)),
+    "SequentialLaneChange": Layout(
+        "multi_lane", "two or more same-direction lanes with broken markings, 140 m junction-free", _multi_lane_any,
+        clear_before=0.0, clear_after=140.0, pre=(0.0, 0.0), length=140.0, path_builder=_sequential_lanes),
     "HighwayCutIn": Layout(
         "highway_ramps", "a highway (>= 80 km/h) crossed straight through a junction where an on-ramp joins the lane "
         "right of the route", turns=("straight",), junction_ok=_highway_merge, junction_extra=_cut_in_car,

@@ -5,6 +5,7 @@ short clip of each type loads through ``ClipDataset`` with the scenario's actors
 from __future__ import annotations
 
 import gzip
+import itertools
 import json
 import math
 from dataclasses import dataclass, field, replace
@@ -221,3 +222,65 @@ def test_highway_cut_in_places_on_town04_ramps(carla_maps_dir):
         # the car waits off the route (on the ramp), and the route runs on Town04's 90 km/h highway
         assert car not in {(wp.road_id, wp.lane_id) for wp in dense.waypoints}
         assert town.speed_limit(dense.waypoints[0]) >= 80.0
+
+
+# ------------------------------------------------------------------------------------------------ SequentialLaneChange
+
+
+def _lane_changes(lanes: list[tuple[int, int]], min_run: int = 1) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """(from, to) lane pairs where a sequence of (road, lane) switches lane on the same road; runs shorter than
+    ``min_run`` samples (a wheel brushing the marking) are dropped first."""
+    runs: list[list] = []
+    for lane in lanes:
+        if runs and runs[-1][0] == lane:
+            runs[-1][1] += 1
+        else:
+            runs.append([lane, 1])
+    kept: list[tuple[int, int]] = []
+    for lane, n in runs:
+        if n >= min_run and (not kept or kept[-1] != lane):
+            kept.append(lane)
+    return [(a, b) for a, b in itertools.pairwise(kept) if a[0] == b[0]]
+
+
+def test_sequential_lane_change_ego_changes_lane_twice_as_the_route_does(tmp_path):
+    run, world_map, route = drive("all", "SequentialLaneChange", tmp=tmp_path)
+    assert run.success, run.infractions
+    dense = DenseRoute.from_route(world_map, route)
+    planned = _lane_changes([(wp.road_id, wp.lane_id) for wp in dense.waypoints])
+    # the route holds exactly two lane changes (placement), and the ego drove both, into the same lanes,
+    # each new lane held for at least 1 s (20 ticks)
+    assert len(planned) == 2
+    driven = _lane_changes([(e[5], e[6]) for e in run.ego if not e[7]], min_run=20)
+    assert driven == planned
+
+
+def test_sequential_lane_change_clip_loads(tmp_path):
+    clip = short_clip(tmp_path, "all", "SequentialLaneChange", 70.0)
+    assert clip.name.startswith("LaneChange_Town100_Route")
+    assert load_clip(clip) > 0
+
+
+def test_sequential_lane_change_expert_drives_on_when_the_new_lane_stays_a_queue(tmp_path):
+    """A route on which the expert, waiting at the route's change (PDM-Lite's way), stood beside a standing queue
+    until the route timed out (200 s, 72 % of the route): now it holds its lane after 5 s and gets through."""
+    from b2d_data import expert
+    from b2d_data.collection.plan import route_seed
+
+    town = TownSource(preset="all").materialise(tmp_path)
+    world_map = load_map(town)
+    route = placement.make_routes(world_map, "SequentialLaneChange", 1, seed=1)[0]
+    seed = route_seed(1, f"all:{route.id}")  # as scripts/expert_success.py seeds it
+    dense = DenseRoute.from_route(world_map, route)
+    driver = expert.Expert(world_map, list(dense), expert.ExpertConfig.for_builtin(), seed=seed)
+    held = []
+
+    def on_frame(snapshot, info) -> None:
+        held.append(driver.lane_changes.holding)
+
+    with BuiltinSimulator(world_map, seed=seed, weather=route.weather_at(0.0)) as sim:
+        result = RouteRunner(sim, route, driver, seed=seed, dense_route=dense, on_frame=on_frame,
+                             record_every=1).run()  # fmt: skip
+    assert any(held)  # the ego did wait 5 s at a change, and held its lane
+    assert result.success, result.record.infractions
+    assert result.duration_game < 120.0

@@ -19,6 +19,7 @@ from b2d_data.scenarios.catalog.junction_turns import (
     SignalizedJunctionLeftTurnEnterFlow,
     SignalizedJunctionRightTurn,
 )
+from b2d_data.scenarios.catalog.lane_change import SequentialLaneChange
 from b2d_data.scenarios.catalog.obstacles import (
     Accident,
     AccidentTwoWays,
@@ -58,4 +59,8 @@ __all__ += [
     "BlockedIntersection", "ControlLoss", "OppositeVehicleTakingPriority", "ParkingCrossingPedestrian",
     "ParkingCutIn", "PedestrianCrossing", "StaticCutIn", "TJunction", "VanillaNonSignalizedTurn",
     "VanillaSignalizedTurnEncounterGreenLight", "VehicleTurningRoute", "VehicleTurningRoutePedestrian",
+]  # fmt: skip
+# Issue 13: highway lane changes.
+__all__ += [
+    "SequentialLaneChange",
 ]  # fmt: skip

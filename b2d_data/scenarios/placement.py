@@ -120,13 +120,30 @@ class Candidate:
             if not options:
                 break
             inside.append(options[0])
-        after = lane_walk(conn.exit, departure, step=step)
-        if any(wp.is_junction for wp in after) or len(after) * step < spec.departure[0]:
+        after = _departure(conn.exit, departure, spec.merge_left_after, rng)
+        if after is None or any(wp.is_junction for wp in after) or len(after) * step < spec.departure[0]:
             return None
         path = list(reversed(back)) + [wp for wp in inside if wp.is_junction] + after
         offset = float(rng.uniform(*spec.trigger_offset))
         trigger = path[min(round(offset / step), len(back) - 1)]
         return path, trigger
+
+
+def _departure(
+    exit_wp: Waypoint, length: float, merge_left_after: tuple[float, float] | None, rng: np.random.Generator
+) -> list[Waypoint] | None:
+    """Lane points 2 m apart over ``length`` m from a junction exit, changing into the left lane on the way when
+    ``merge_left_after`` asks for it (None when that lane is missing)."""
+    step = KEYPOINT_SPACING
+    if merge_left_after is None:
+        return lane_walk(exit_wp, length, step=step)
+    keep = float(rng.uniform(*merge_left_after))
+    own = lane_walk(exit_wp, keep, step=step)
+    left = same_direction_driving_neighbour(own[-1], "left")
+    if left is None:
+        return None
+    # the next keypoint is one step ahead on the left lane: the planner makes the change between the two
+    return own + lane_walk(left, length - keep, step=step)[1:]
 
 
 @dataclass(frozen=True)
@@ -161,6 +178,9 @@ class Layout:
     path_builder: Callable[[Waypoint, np.random.Generator, float], list[Waypoint] | None] | None = None
     #: Junction layouts: a further check of the connection in its town (e.g. an interurban road's speed limit).
     junction_ok: Callable[[Map, JunctionLane, list[JunctionLane]], bool] | None = None
+    #: Junction layouts: after the junction the route keeps its exit lane this far (m), then changes into the lane
+    #: on its left (an on-ramp's acceleration lane into the highway); None: it stays on the exit lane.
+    merge_left_after: tuple[float, float] | None = None
 
     @property
     def is_junction(self) -> bool:
@@ -506,6 +526,33 @@ def _cut_in_car(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str,
     return [{"other_actor_location": _xml_location(car), "end_location": _xml_location(end)}]
 
 
+#: MergerIntoSlowTraffic: the flow starts this far up the highway before the merge junction and ends this far
+#: after it, on the highway lane the acceleration lane runs beside (m; B2D's routes: ~25 m behind the trigger,
+#: 120-230 m ahead of it).
+SLOW_FLOW_BACK, SLOW_FLOW_AFTER = 60.0, 75.0
+
+
+def _ramp_into_acceleration_lane(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The route comes down an on-ramp and through its merge junction onto the acceleration lane of a highway."""
+    for other in lanes:
+        if other.turn == "straight" and _highway_merge(town, other, lanes) and _merge_lane(other, lanes) is conn:
+            return True
+    return False
+
+
+def _slow_flow_beside(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The slow flow on the highway lane left of the acceleration lane: from before the merge to after it."""
+    for other in lanes:
+        if other.turn != "straight" or _merge_lane(other, lanes) is not conn:
+            continue
+        source = walk_back_to_source(other.entry, SLOW_FLOW_BACK)
+        sink = move_along(other.exit, SLOW_FLOW_AFTER, step=CHECK_STEP)
+        if sink is None or sink.is_junction:
+            continue
+        return [{"start_actor_flow": _xml_location(source), "end_actor_flow": _xml_location(sink)}]
+    return []
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -628,7 +675,14 @@ LAYOUTS: dict[str, Layout] = {
         "highway_ramps", "a highway (>= 80 km/h) crossed straight through a junction where an on-ramp joins the lane "
         "right of the route", turns=("straight",), junction_ok=_highway_merge, junction_extra=_cut_in_car,
         approach=(50.0, 70.0), departure=(60.0, 80.0), trigger_offset=(0.0, 4.0)),
+    "MergerIntoSlowTraffic": Layout(
+        "highway_ramps", "an on-ramp merging into a highway (>= 80 km/h) through a junction onto an acceleration "
+        "lane beside the highway's right lane", turns=("straight", "left", "right"),
+        junction_ok=_ramp_into_acceleration_lane, junction_extra=_slow_flow_beside, approach=(40.0, 50.0),
+        departure=(95.0, 105.0), trigger_offset=(2.0, 6.0), merge_left_after=(16.0, 30.0)),
 }  # fmt: skip
+# V2 (Town06's entries with their own lanes) merges the same way on generated towns; only the background differs.
+LAYOUTS["MergerIntoSlowTrafficV2"] = LAYOUTS["MergerIntoSlowTraffic"]
 
 
 def _check_type(scenario_type: str) -> Layout:
@@ -895,6 +949,16 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
         return {
             "flow_speed": _value(_int(rng, 16, 18)),
             "source_dist_interval": {"from": _int(rng, 36, 42), "to": _int(rng, 84, 94)},
+        }
+    if scenario_type == "MergerIntoSlowTraffic":
+        return {
+            "flow_speed": _value(_int(rng, 9, 10)),
+            "source_dist_interval": {"from": _int(rng, 14, 16), "to": _int(rng, 33, 42)},
+        }
+    if scenario_type == "MergerIntoSlowTrafficV2":
+        return {
+            "flow_speed": _value("10"),
+            "source_dist_interval": {"from": _int(rng, 11, 14), "to": _int(rng, 30, 34)},
         }
     if scenario_type == "YieldToEmergencyVehicle":
         return {"distance": _value(_int(rng, 26, 30))}

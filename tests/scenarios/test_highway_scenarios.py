@@ -284,3 +284,49 @@ def test_sequential_lane_change_expert_drives_on_when_the_new_lane_stays_a_queue
     assert any(held)  # the ego did wait 5 s at a change, and held its lane
     assert result.success, result.record.infractions
     assert result.duration_game < 120.0
+
+
+# ------------------------------------------------------------------------------------------------ MergerIntoSlowTraffic
+
+MERGERS = ("MergerIntoSlowTraffic", "MergerIntoSlowTrafficV2")
+
+
+# (type, generated route index): V2's first highway route is one of the ~10 % the expert fails (it stops across the
+# lane change and slides into the next lane), so its second one is driven here; the rate is expert_success.py's job.
+@pytest.mark.parametrize(("scenario_type", "k"), [("MergerIntoSlowTraffic", 0), ("MergerIntoSlowTrafficV2", 1)])
+def test_merger_ego_comes_off_the_ramp_into_the_slow_flow_between_its_cars(tmp_path, scenario_type, k):
+    run, world_map, route = drive("highway", scenario_type, k=k, tmp=tmp_path)
+    assert run.success, run.infractions
+    params = route.scenarios[0].other_parameters
+    flow_lane = _lane_of(world_map, params["end_actor_flow"])
+    flow_speed = float(params["flow_speed"]["value"])
+    assert (run.ego[0][5], run.ego[0][6]) != flow_lane  # it starts on the on-ramp
+    merged = [i for i, e in enumerate(run.ego) if (e[5], e[6]) == flow_lane]
+    assert merged
+    ahead_seen = behind_seen = False
+    for i in merged:
+        _, x, y, yaw_deg, _, road, lane, _ = run.ego[i]
+        yaw = math.radians(yaw_deg)
+        for fx, fy, speed, f_road, f_lane, _ in run.scenario[i].values():
+            if (f_road, f_lane) != (road, lane):
+                continue
+            along = (fx - x) * math.cos(yaw) + (fy - y) * math.sin(yaw)
+            assert speed <= flow_speed + 0.5  # the flow it merged into is slow
+            ahead_seen |= 0.0 < along < 50.0
+            behind_seen |= -50.0 < along < 0.0
+    # in the flow's lane with flow cars both in front of it and behind it
+    assert ahead_seen and behind_seen
+    # the merge was slow: the ego drove at about the flow's speed once in its lane
+    assert min(run.ego[i][4] for i in merged) < flow_speed + 1.0
+
+
+@pytest.mark.parametrize("scenario_type", MERGERS)
+def test_merger_clip_loads_with_the_flow_cars_annotated(tmp_path, scenario_type):
+    clip = short_clip(tmp_path, "highway", scenario_type, 70.0)
+    assert clip.name.startswith(f"{scenario_type}_Town102_Route")
+    assert load_clip(clip) > 0
+    town = load_map(TownSource(preset="highway").materialise(tmp_path / "town"))
+    route = placement.make_routes(town, scenario_type, 1, seed=0)[0]
+    lane = _lane_of(town, route.scenarios[0].other_parameters["start_actor_flow"])
+    on_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == lane]
+    assert on_lane and all(b["type_id"].startswith("vehicle.") for b in on_lane)

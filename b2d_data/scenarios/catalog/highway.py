@@ -12,18 +12,32 @@ from __future__ import annotations
 import logging
 import math
 from enum import Enum
+from typing import ClassVar
 
 import numpy as np
 
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.interurban import location_parameter
+from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.interurban import flow_lane_path, location_parameter
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
-from b2d_data.scenarios.catalog.road_geometry import is_driving, lane_walk, same_direction_driving_neighbour
+from b2d_data.scenarios.catalog.road_geometry import (
+    is_driving,
+    lane_walk,
+    same_direction_driving_neighbour,
+    same_direction_lanes,
+)
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
-from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.framework import (
+    SCENARIO_ROLE,
+    Scenario,
+    ScenarioContext,
+    ScenarioSetupError,
+    ScenarioStatus,
+    register,
+)
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -165,3 +179,81 @@ class HighwayCutIn(JunctionScenario):
         self.agent = ConstantVelocityAgent(self.ctx.sim, self.actor_id, track, self.cut_in_speed)
         self.phase = _Phase.CUT_IN
         log.debug("%s: cut-in at %.1f m/s", self.name, self.cut_in_speed)
+
+
+class _SlowTrafficMerge(Scenario):
+    """Common part of the two MergerIntoSlowTraffic types: a slow, pre-populated flow from ``start_actor_flow`` to
+    ``end_actor_flow`` on the lane the ego merges into; SUCCESS once the ego is within 2 m of its sink.
+
+    The expert learns the sink from the hint and merges with gap acceptance (:mod:`b2d_data.expert.merging`).
+    """
+
+    #: V2 also removes the lanes after the junction from background traffic.
+    remove_exit_lanes: ClassVar[bool] = False
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.flow_speed = ctx.value("flow_speed", 10.0)
+        self.interval = ctx.interval("source_dist_interval", (20.0, 50.0))
+        self.path: list[Waypoint] = flow_lane_path(ctx)
+        sink = self.path[-1].transform.location
+        closest = ctx.route.closest_index(sink)
+        # a route cut short of the sink (a short clip) runs the flow until the route ends
+        reaches = ctx.route.waypoints[closest].transform.location.distance_2d(sink) <= 3.0
+        self.end_index: int | None = closest if reaches else None
+        self.flow: ActorFlow | None = None
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the merge junction, remove the flow's lanes from background traffic, start the flow."""
+        bg = self.ctx.sim.background
+        inside = [k for k, wp in enumerate(self.path) if wp.is_junction]
+        after = float(len(self.path) - 1 - inside[-1]) if inside else 0.0  # metres of flow past the junction
+        bg.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.path[0]),
+            remove_exits=same_direction_lanes(self.path[-1]) if self.remove_exit_lanes else [], stop_entries=False,
+            extend_road_exit=after + 20.0,
+        )  # fmt: skip
+        bg.switch_route_sources(False)
+        self.flow = ActorFlow(
+            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True
+        )
+        self.flow.start()
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Drive the flow; SUCCESS once the ego is within 2 m of its sink."""
+        if self.flow is not None:
+            self.flow.update(snapshot)
+        if self.end_index is None:
+            return ScenarioStatus.RUNNING
+        s = self.ctx.route.cumulative_length
+        if float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0:
+            return ScenarioStatus.SUCCESS
+        return ScenarioStatus.RUNNING
+
+    def hint(self) -> ScenarioHint | None:
+        """While the flow runs: the sink the ego merges towards."""
+        if self.flow is None or not self.flow.active:
+            return None
+        sink = self.path[-1].transform.location
+        return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
+
+    def on_end(self) -> None:
+        """Stop the flow and switch the route sources back on."""
+        if self.flow is not None:
+            self.flow.stop()
+            self.ctx.sim.background.switch_route_sources(True)
+
+
+@register
+class MergerIntoSlowTraffic(_SlowTrafficMerge):
+    """Merge from an on-ramp into a slow flow (§2.2 #31)."""
+
+    xml_type = "MergerIntoSlowTraffic"
+
+
+@register
+class MergerIntoSlowTrafficV2(_SlowTrafficMerge):
+    """Merge from a dedicated entry into a slow single-lane flow, Town06-style (§2.2 #32)."""
+
+    xml_type = "MergerIntoSlowTrafficV2"
+    remove_exit_lanes = True

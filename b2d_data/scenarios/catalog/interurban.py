@@ -48,7 +48,14 @@ def flow_lane_path(ctx: ScenarioContext, start_tag: str = "start_actor_flow", en
     try:
         return flow_path(source, sink)
     except ScenarioSetupError as exc:
-        raise ScenarioSetupError(f"{ctx.config.name}: {exc}") from None
+        straight_error = exc
+    # the sink is not straight on (e.g. Town06's entries, where the flow keeps to a lane that forks off): plan the
+    # way as scenario_runner's ActorFlow does, with the route planner
+    planned = [wp for wp, _ in ctx.map.interpolate_trajectory(
+        [source.transform.location, sink.transform.location], hop_resolution=1.0)]  # fmt: skip
+    if len(planned) < 2 or planned[-1].transform.location.distance_2d(sink.transform.location) > 3.0:
+        raise ScenarioSetupError(f"{ctx.config.name}: {straight_error}") from None
+    return planned
 
 
 @register

@@ -41,7 +41,7 @@ SCENARIOS: tuple[str, ...] = (
     "NonSignalizedJunctionLeftTurn", "SignalizedJunctionRightTurn", "SignalizedJunctionLeftTurnEnterFlow",
     "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
     # issue 13: highway and interurban
-    "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow",
+    "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow", "HighwayExit",
     # issue 11: overtaking and give-way
     "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays",
     "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays", "InvadingTurn",

@@ -30,6 +30,7 @@ from b2d_data.expert.forecasting import (
 )
 from b2d_data.expert.hazard_heuristic import should_brake
 from b2d_data.expert.idm import idm_target_speed
+from b2d_data.expert.lane_change_gap import LaneChangeGate
 from b2d_data.expert.lateral_controller import LateralPIDController, heading_error, lookahead_index
 from b2d_data.expert.lights_and_signs import StopSignTracker, red_light_target_speed, stop_sign_centre
 from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
@@ -93,6 +94,7 @@ class Expert:
         self.longitudinal = make_longitudinal_controller(config)
         self.stop_signs = StopSignTracker(config)
         self.obstacles = ObstacleScenarioManager(config, map)
+        self.lane_changes = LaneChangeGate(config, map) if config.lane_change_gap_acceptance else None
         self.route: DenseRoute | None = None
         self.state: ExpertState | None = None
         self.blocked_ticks = 0
@@ -119,6 +121,10 @@ class Expert:
         if route.is_junction[index : index + cfg.points(cfg.junction_lookahead)].any():
             target_speed = min(target_speed, cfg.max_speed_in_junction)
 
+        if self.lane_changes is not None:
+            # planned lane changes wait for a gap in the target lane (lane_change_gap.py)
+            target_speed = min(target_speed, self.lane_changes.step(snapshot.vehicles(), ego, route,
+                                                                    target_speed).target_speed)
         obstacle = self.obstacles.step(snapshot, ego, route, hints, target_speed)
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)

@@ -473,7 +473,7 @@ def _cut_in_car(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str,
 #: HighwayExit: metres of route on the ego's lane before its planned change across the flow; metres between that
 #: change and the junction (or the change into a deceleration lane); where the deceleration lane is at least
 #: ``EXIT_LANE_MIN_WIDTH`` m wide, the share of it before the junction where the route enters it.
-EXIT_START_RUN, EXIT_CHANGE_RUN, EXIT_LANE_SHARE = (20.0, 30.0), (45.0, 60.0), (0.35, 0.55)
+EXIT_START_RUN, EXIT_CHANGE_RUN, EXIT_LANE_SHARE = (15.0, 25.0), (85.0, 105.0), (0.35, 0.55)
 EXIT_LANE_MIN_WIDTH = 3.0
 #: HighwayExit's flow starts this far behind the route's start and ends this far past the junction (m), as in
 #: Bench2Drive's routes (26-28 m behind the trigger point).
@@ -998,9 +998,27 @@ def route_id(seed: int, scenario_type: str, k: int) -> str:
     return str((int(seed) * 100 + index) * 10000 + k + 1)
 
 
+#: No keypoint this close after a lane change of the path (m): the planner makes the change itself, jumping a few
+#: metres ahead on the new lane, and a keypoint inside that jump would make the route trace back.
+LANE_CHANGE_KEYPOINT_GAP = 10.0
+
+
 def _keypoints(path: Sequence[Waypoint]) -> tuple[Location, ...]:
-    """Keypoints of a lane path: its points outside junctions (the planner finds the connection between them)."""
-    return tuple(wp.transform.location for wp in path if not wp.is_junction)
+    """Keypoints of a lane path: its points outside junctions (the planner finds the connection between them),
+    except those within ``LANE_CHANGE_KEYPOINT_GAP`` m after a change to a neighbouring lane."""
+    out: list[Location] = []
+    change: Location | None = None
+    for k, wp in enumerate(path):
+        if wp.is_junction:
+            continue
+        prev = path[k - 1] if k > 0 else None
+        loc = wp.transform.location
+        if prev is not None and not prev.is_junction and prev.road_id == wp.road_id and prev.lane_id != wp.lane_id:
+            change = prev.transform.location
+        if change is not None and loc.distance_2d(change) < LANE_CHANGE_KEYPOINT_GAP:
+            continue
+        out.append(loc)
+    return tuple(out)
 
 
 def _deviation(dense: DenseRoute, path: Sequence[Waypoint]) -> float:

@@ -3,7 +3,8 @@
 One constant-speed :class:`~b2d_data.scenarios.catalog.flows.ActorFlow` runs from ``start_actor_flow`` (a lane right
 of the ego's, behind it) on through the exit junction (the planner's route) to ``end_actor_flow``, pre-populated, also inside the
 junction (LB2.0's ``initial_actors=True, initial_junction=True``). The flow's lane is removed from background traffic
-(``RemoveRoadLane``). The route changes lanes across the flow toward the exit; the scenario ends when the ego leaves
+(``RemoveRoadLane``), and so is a deceleration lane that leads to the exit (generated towns; Bench2Drive's exits leave
+from the flow's lane itself). The route changes lanes across the flow toward the exit; the scenario ends when the ego leaves
 the exit junction (the first junction on the flow's path), or after 240 s.
 """
 
@@ -20,6 +21,9 @@ from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
+
+#: Ticks between two clearings of the flow's lane.
+CLEAR_EVERY = 10
 
 
 @register
@@ -58,20 +62,54 @@ class HighwayExit(Scenario):
             raise ScenarioSetupError(
                 f"{self.name}: the route follows the flow straight through junction {junction} instead of exiting"
             )
+        waypoints = ctx.route.waypoints
+        entry = next(k for k in range(self.trigger_index, len(waypoints))
+                     if waypoints[k].is_junction and waypoints[k].junction_id == junction)
+        #: where the route leaves the highway, when that is a deceleration lane right of the flow's
+        self.exit_lane: Waypoint | None = waypoints[entry - 1] if entry > 0 else None
+        if self.exit_lane is not None and (self.exit_lane.road_id, self.exit_lane.lane_id) in through | {
+            (wp.road_id, wp.lane_id) for wp in self.path
+        }:
+            self.exit_lane = None
         self.flow: ActorFlow | None = None
+        self._flow_keys: set[tuple[int, int]] = set()
+        self._ticks = 0
         self._left = WaitEndIntersection(ctx.map, self.junction_id)
 
     def start(self, snapshot: Snapshot) -> None:
         """Remove the flow's lane from background traffic and start the pre-populated flow."""
+        self._flow_keys = {(wp.road_id, wp.lane_id) for wp in self.path if not wp.is_junction}
         self.ctx.sim.background.remove_road_lane(self.path[0])
+        if self.exit_lane is not None:
+            # a deceleration lane to the exit: background cars there would stop ahead of the ego and close it
+            self.ctx.sim.background.remove_road_lane(self.exit_lane)
+        self._clear_flow_lane(snapshot)
         self.flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval,
                               initial_actors=True)  # fmt: skip
         self.flow.start()
 
+    def _clear_flow_lane(self, snapshot: Snapshot) -> None:
+        """RemoveRoadLane on the flow's lane beside the ego, while the ego is not on it yet.
+
+        Repeated because the background traffic starts after the trigger and places the vehicles of the ego's lane
+        along the route, which crosses into the flow's lane; those must go too.
+        """
+        ego = self.ctx.ego(snapshot)
+        here = self.ctx.map.get_waypoint(ego.location) if ego is not None else None
+        if here is None or (here.road_id, here.lane_id) in self._flow_keys:
+            return
+        beside = min(self.path, key=lambda wp: wp.transform.location.distance_2d(ego.location))
+        if beside.road_id == here.road_id and not beside.is_junction:
+            self.ctx.sim.background.remove_road_lane(beside)
+
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS once the ego has left the exit junction."""
+        """Drive the flow and keep its lane free of background traffic; SUCCESS once the ego has left the exit
+        junction."""
         if self.flow is not None:
             self.flow.update(snapshot)
+            self._ticks += 1
+            if self._ticks % CLEAR_EVERY == 0:
+                self._clear_flow_lane(snapshot)
         ego = self.ctx.ego(snapshot)
         if ego is not None and self._left.check(ego):
             return ScenarioStatus.SUCCESS

@@ -1,7 +1,7 @@
 """HighwayExit (§2.2 #30): the ego leaves a multi-lane highway by an exit on the right, across a flow.
 
 One constant-speed :class:`~b2d_data.scenarios.catalog.flows.ActorFlow` runs from ``start_actor_flow`` (a lane right
-of the ego's, behind it) on through the exit junction (the planner's route) to ``end_actor_flow``, pre-populated, also inside the
+of the ego's, behind it) on along its lane through the exit junction to ``end_actor_flow``, pre-populated, also inside the
 junction (LB2.0's ``initial_actors=True, initial_junction=True``). The flow's lane is removed from background traffic
 (``RemoveRoadLane``), and so is a deceleration lane that leads to the exit (generated towns; Bench2Drive's exits leave
 from the flow's lane itself). The route changes lanes across the flow toward the exit; the scenario ends when the ego leaves
@@ -13,9 +13,9 @@ from __future__ import annotations
 import logging
 
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.enter_flow import flow_lanes_path
 from b2d_data.scenarios.catalog.flows import ActorFlow
 from b2d_data.scenarios.catalog.interurban import location_parameter
+from b2d_data.scenarios.catalog.road_geometry import lane_walk
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim.api import Snapshot
@@ -24,6 +24,29 @@ log = logging.getLogger(__name__)
 
 #: Ticks between two clearings of the flow's lane.
 CLEAR_EVERY = 10
+#: At a fork the flow takes the branch whose next metres come nearest its sink.
+FORK_LOOKAHEAD = 60.0
+
+
+def lane_path_to(source: Waypoint, sink: Waypoint, max_length: float = 600.0) -> list[Waypoint] | None:
+    """Lane waypoints 1 m apart from ``source`` along its lane, never changing lanes, up to the point nearest
+    ``sink``; at a fork (an exit) the branch that leads nearer the sink. None when the sink is not reached."""
+    target = sink.transform.location
+    path = [source]
+    while len(path) < max_length:
+        options = path[-1].next(1.0)
+        if not options:
+            break
+        if len(options) == 1:
+            path.append(options[0])
+        else:
+            path.append(min(options, key=lambda o: min(
+                wp.transform.location.distance_2d(target) for wp in lane_walk(o, FORK_LOOKAHEAD))))
+        if path[-1].transform.location.distance_2d(target) < 0.5:
+            break
+    d = [wp.transform.location.distance_2d(target) for wp in path]
+    k = min(range(len(d)), key=d.__getitem__)
+    return path[: k + 1] if d[k] < 3.0 and k > 0 else None
 
 
 @register
@@ -40,8 +63,15 @@ class HighwayExit(Scenario):
         sink = ctx.map.get_waypoint(location_parameter(ctx, "end_actor_flow"))
         if source is None or sink is None:
             raise ScenarioSetupError(f"{self.name}: the actor flow's source or sink is off the road")
-        # as LB2.0, the flow follows the planner's route from source to sink (at an exit the lane forks)
-        self.path: list[Waypoint] = flow_lanes_path(ctx, source, sink)
+        # LB2.0's flow follows the planner's route from source to sink; ours keeps to its lane (zero-cost lane
+        # changes let the planner wander across lanes on a curved highway) and takes the fork toward the sink
+        path = lane_path_to(source, sink)
+        if path is None:
+            raise ScenarioSetupError(
+                f"{self.name}: the lane at start_actor_flow (road {source.road_id} lane {source.lane_id}) does not "
+                "lead to end_actor_flow"
+            )
+        self.path: list[Waypoint] = path
         junction = next((wp.junction_id for wp in self.path if wp.is_junction), None)
         if junction is None:
             raise ScenarioSetupError(f"{self.name}: layout missing: the actor flow crosses no junction")
@@ -52,13 +82,12 @@ class HighwayExit(Scenario):
                 "the exit behind"
             )
         self.junction_id = int(junction)
-        exit_lanes = {
-            (wp.road_id, wp.lane_id)
-            for wp in ctx.route.waypoints[self.trigger_index :]
-            if wp.is_junction and wp.junction_id == junction
-        }
+        def road_after(waypoints: list[Waypoint]) -> int | None:
+            inside = [k for k, wp in enumerate(waypoints) if wp.is_junction and wp.junction_id == junction]
+            return waypoints[inside[-1] + 1].road_id if inside and inside[-1] + 1 < len(waypoints) else None
+
         through = {(wp.road_id, wp.lane_id) for wp in self.path if wp.is_junction and wp.junction_id == junction}
-        if exit_lanes & through:
+        if road_after(list(ctx.route.waypoints[self.trigger_index :])) == road_after(self.path):
             raise ScenarioSetupError(
                 f"{self.name}: the route follows the flow straight through junction {junction} instead of exiting"
             )

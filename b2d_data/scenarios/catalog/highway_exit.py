@@ -77,23 +77,22 @@ class HighwayExit(Scenario):
             raise ScenarioSetupError(f"{self.name}: layout missing: the actor flow crosses no junction")
         route_junctions = {wp.junction_id for wp in ctx.route.waypoints[self.trigger_index :] if wp.is_junction}
         if junction not in route_junctions:
-            raise ScenarioSetupError(
-                f"{self.name}: layout missing: the route does not pass junction {junction}, where the flow leaves "
-                "the exit behind"
-            )
+            # as in LB2.0 the scenario then lasts until the route ends (or its timeout)
+            log.warning("%s: the route ends before junction %d, where the flow passes the exit", self.name, junction)
         self.junction_id = int(junction)
         def road_after(waypoints: list[Waypoint]) -> int | None:
             inside = [k for k, wp in enumerate(waypoints) if wp.is_junction and wp.junction_id == junction]
             return waypoints[inside[-1] + 1].road_id if inside and inside[-1] + 1 < len(waypoints) else None
 
         through = {(wp.road_id, wp.lane_id) for wp in self.path if wp.is_junction and wp.junction_id == junction}
-        if road_after(list(ctx.route.waypoints[self.trigger_index :])) == road_after(self.path):
+        route_after = road_after(list(ctx.route.waypoints[self.trigger_index :]))
+        if route_after is not None and route_after == road_after(self.path):
             raise ScenarioSetupError(
                 f"{self.name}: the route follows the flow straight through junction {junction} instead of exiting"
             )
         waypoints = ctx.route.waypoints
-        entry = next(k for k in range(self.trigger_index, len(waypoints))
-                     if waypoints[k].is_junction and waypoints[k].junction_id == junction)
+        entry = next((k for k in range(self.trigger_index, len(waypoints))
+                      if waypoints[k].is_junction and waypoints[k].junction_id == junction), 0)
         #: where the route leaves the highway, when that is a deceleration lane right of the flow's
         self.exit_lane: Waypoint | None = waypoints[entry - 1] if entry > 0 else None
         if self.exit_lane is not None and (self.exit_lane.road_id, self.exit_lane.lane_id) in through | {

@@ -118,8 +118,9 @@ def planned_changes(route: DenseRoute, town: Map | None, cfg: ExpertConfig, gap:
             for idx in range(change.end, min(limit, n), cfg.points_per_meter):
                 wp = route.waypoint(idx)
                 keys.add((wp.road_id, wp.lane_id))
-            for idx in range(max(0, change.start - cfg.points(gap.lookahead + gap.search_back)), change.start,
-                             cfg.points_per_meter):
+            for idx in range(
+                max(0, change.start - cfg.points(gap.lookahead + gap.search_back)), change.start, cfg.points_per_meter
+            ):
                 wp = route.waypoint(idx)
                 other = wp.get_right_lane() if change.to_right else wp.get_left_lane()
                 if other is not None:
@@ -176,8 +177,9 @@ class LaneChangeGate:
     gap: GapConfig = field(default_factory=GapConfig)
     changes: list[_Change] | None = None
 
-    def step(self, snapshot_vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute,
-             desired_speed: float) -> GapDecision:
+    def step(
+        self, snapshot_vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute, desired_speed: float
+    ) -> GapDecision:
         """The gate's decision for this frame (may rewrite the route's working points)."""
         cfg, gap = self.config, self.gap
         if self.changes is None:
@@ -212,13 +214,14 @@ class LaneChangeGate:
         return GapDecision(min(target, stop), None, holding=True)
 
     # -- helpers ---------------------------------------------------------------------------------------------
-    def _target_lane_cars(self, vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute,
-                          change: _Change) -> list[_Car]:
+    def _target_lane_cars(
+        self, vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute, change: _Change
+    ) -> list[_Car]:
         """Vehicles on the change's target lane near the ego, with their position along the route."""
         cfg, gap = self.config, self.gap
         lo = max(0, route.index - cfg.points(gap.search_back))
         hi = min(len(route), route.index + cfg.points(gap.search_ahead))
-        pts = route.original_points[lo:hi:cfg.points_per_meter, :2]
+        pts = route.original_points[lo : hi : cfg.points_per_meter, :2]
         out = []
         if pts.shape[0] == 0 or self.town is None:
             return out
@@ -233,8 +236,9 @@ class LaneChangeGate:
             wp = self.town.get_waypoint(v.location)
             if wp is None or (wp.road_id, wp.lane_id) not in change.target_keys:
                 continue
-            out.append(_Car((lo + k * cfg.points_per_meter) / cfg.points_per_meter, v.bounding_box.extent.x,
-                            v.speed(), v))
+            out.append(
+                _Car((lo + k * cfg.points_per_meter) / cfg.points_per_meter, v.bounding_box.extent.x, v.speed(), v)
+            )
         out.sort(key=lambda c: c.s)
         return out
 
@@ -295,5 +299,13 @@ class LaneChangeGate:
         """IDM behind the gap's leader (its distance along the route)."""
         cfg = self.config
         distance = leader.s - ego_s
-        return idm_target_speed(cfg, desired, speed, leader.half + half, leader.speed, distance,
-                                cfg.idm_leading_vehicle_s0, cfg.idm_leading_vehicle_T)
+        return idm_target_speed(
+            cfg,
+            desired,
+            speed,
+            leader.half + half,
+            leader.speed,
+            distance,
+            cfg.idm_leading_vehicle_s0,
+            cfg.idm_leading_vehicle_T,
+        )

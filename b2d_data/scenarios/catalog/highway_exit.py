@@ -40,8 +40,12 @@ def lane_path_to(source: Waypoint, sink: Waypoint, max_length: float = 600.0) ->
         if len(options) == 1:
             path.append(options[0])
         else:
-            path.append(min(options, key=lambda o: min(
-                wp.transform.location.distance_2d(target) for wp in lane_walk(o, FORK_LOOKAHEAD))))
+            path.append(
+                min(
+                    options,
+                    key=lambda o: min(wp.transform.location.distance_2d(target) for wp in lane_walk(o, FORK_LOOKAHEAD)),
+                )
+            )
         if path[-1].transform.location.distance_2d(target) < 0.5:
             break
     d = [wp.transform.location.distance_2d(target) for wp in path]
@@ -80,6 +84,7 @@ class HighwayExit(Scenario):
             # as in LB2.0 the scenario then lasts until the route ends (or its timeout)
             log.warning("%s: the route ends before junction %d, where the flow passes the exit", self.name, junction)
         self.junction_id = int(junction)
+
         def road_after(waypoints: list[Waypoint]) -> int | None:
             inside = [k for k, wp in enumerate(waypoints) if wp.is_junction and wp.junction_id == junction]
             return waypoints[inside[-1] + 1].road_id if inside and inside[-1] + 1 < len(waypoints) else None
@@ -91,8 +96,14 @@ class HighwayExit(Scenario):
                 f"{self.name}: the route follows the flow straight through junction {junction} instead of exiting"
             )
         waypoints = ctx.route.waypoints
-        entry = next((k for k in range(self.trigger_index, len(waypoints))
-                      if waypoints[k].is_junction and waypoints[k].junction_id == junction), 0)
+        entry = next(
+            (
+                k
+                for k in range(self.trigger_index, len(waypoints))
+                if waypoints[k].is_junction and waypoints[k].junction_id == junction
+            ),
+            0,
+        )
         #: where the route leaves the highway, when that is a deceleration lane right of the flow's
         self.exit_lane: Waypoint | None = waypoints[entry - 1] if entry > 0 else None
         if self.exit_lane is not None and (self.exit_lane.road_id, self.exit_lane.lane_id) in through | {

@@ -46,6 +46,7 @@ class GapConfig:
     rear_margin: float = 3.0  # bumper gap to the follower: margin + headway × its speed + Δv² / (2 × its braking)
     rear_headway: float = 0.4
     follower_brake: float = 3.0  # the follower closes in at most at its speed difference, braking this hard
+    ego_acceleration: float = 2.0  # what the ego gains while it moves over, when slower than the follower
     comfortable_brake: float = 2.5
     stop_deceleration: float = 2.0  # the braking curve toward the last point where a held change may begin
     stop_margin: float = 2.0
@@ -250,7 +251,10 @@ class LaneChangeGate:
     def _rear_need(self, speed: float, follower: _Car) -> float:
         gap = self.gap
         closing = max(0.0, follower.speed - speed)
-        return gap.rear_margin + gap.rear_headway * follower.speed + closing * closing / (2.0 * gap.follower_brake)
+        # the follower brakes while the ego speeds up: they close in by Δv² / (2 (b + a))
+        return gap.rear_margin + gap.rear_headway * follower.speed + closing * closing / (
+            2.0 * (gap.follower_brake + gap.ego_acceleration)
+        )
 
     def _slots(self, cars: list[_Car], speed: float, half: float) -> list[tuple[float, float, float]]:
         """Where the ego's centre may be for each gap at its current speed: (from, to, the gap's speed)."""

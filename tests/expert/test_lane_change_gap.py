@@ -15,13 +15,13 @@ def test_slots_between_flow_cars_follow_speeds_and_closing_speed():
     follower = _Car(s=-10.0, half=2.3, speed=12.0, actor=None)
     leader = _Car(s=20.0, half=2.3, speed=10.0, actor=None)
     # ego at 10 m/s, half length 2.4:
-    # rear need = 3 + 0.4 * 12 + (12 - 10)^2 / (2 * 3) = 8.4667 -> from -10 + 2.3 + 2.4 + 8.4667 = 3.1667
+    # rear need = 3 + 0.4 * 12 + (12 - 10)^2 / (2 * (3 + 2)) = 8.2 -> from -10 + 2.3 + 2.4 + 8.2 = 2.9
     # front need = 3 + 0.3 * 10 (no closing on the leader) = 6 -> to 20 - 2.3 - 2.4 - 6 = 9.3
     # behind the follower: to -10 - 4.7 - 6 = -20.7; ahead of the leader: from 20 + 4.7 + (3 + 4 + 0) = 31.7
     slots = gate._slots([follower, leader], 10.0, 2.4)
     assert [(lo, hi) for lo, hi, _ in slots] == [
         (-math.inf, pytest.approx(-20.7)),
-        (pytest.approx(3.1667, abs=1e-3), pytest.approx(9.3)),
+        (pytest.approx(2.9), pytest.approx(9.3)),
         (pytest.approx(31.7), math.inf),
     ]
     assert slots[1][2] == pytest.approx(11.0)  # the gap moves at its cars' mean speed

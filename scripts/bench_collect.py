@@ -360,6 +360,14 @@ def main() -> None:
             loops = sum(max(0.0, r.duration - r.timings.get("setup", 0.0) - r.timings.get("attach_rig", 0.0))
                         for r in results)  # fmt: skip
             figures["loop_fps"] = frames / (loops / workers) if loops > 0 else 0.0
+            # Where a route process's time went, per frame written (wall ms), and its set-up per route (s).
+            parts = {k: sum(r.timings.get(k, 0.0) for r in results) for k in ("sensors", "anno", "write")}
+            figures["pipeline_ms_per_frame"] = {
+                **{k: round(1e3 * v / max(1, frames), 1) for k, v in parts.items()},
+                "rest of the loop": round(1e3 * (loops - sum(parts.values())) / max(1, frames), 1),
+            }
+            figures["setup_s_per_route"] = round(
+                sum(r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
             figures.update(pipeline_frames=frames, pipeline_wall_s=round(wall, 2), pipeline_fps=frames / wall,
                            busy_cores=round(busy, 2), workers=workers,
                            encode_workers=base.resolved_encode_workers(), errors=errors)  # fmt: skip
@@ -437,6 +445,8 @@ def _report(f: dict[str, Any]) -> None:
             f"(encoders each: {f['encode_workers']}); {f['busy_cores']:.1f} of {cores} cores busy on average"
         )
         print(f"  frame loops alone (route set-up left out): {f['loop_fps']:.2f} frames/s")
+        per_frame = ", ".join(f"{k} {v:.1f}" for k, v in f["pipeline_ms_per_frame"].items())
+        print(f"  route process wall ms per frame: {per_frame}; set-up {f['setup_s_per_route']:.1f} s per route")
         if f["errors"]:
             print(f"  {len(f['errors'])} route(s) failed with an error: {f['errors'][:3]}")
         if "bound_fps" in f:

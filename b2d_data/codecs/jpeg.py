@@ -31,8 +31,8 @@ def _check_rgb(rgb: np.ndarray) -> None:
 def encode_jpeg(rgb: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:
     """Encode an (H, W, 3) uint8 RGB image as OpenCV does in Bench2Drive (quality 20, 4:2:0, baseline).
 
-    On a machine with an NVIDIA GPU the image is encoded by nvJPEG (``jpeg_gpu``: same quantisation tables and
-    subsampling, decoded within codec noise of OpenCV's file); ``B2D_JPEG_ENCODER=opencv`` keeps it on the CPU.
+    ``B2D_JPEG_ENCODER=nvjpeg`` encodes on an NVIDIA GPU instead (``jpeg_gpu``: same quantisation tables and
+    subsampling, decoded within codec noise of OpenCV's file), which pays off only for a single route process.
     """
     _check_rgb(rgb)
     gpu = nvjpeg_encoder(int(quality))

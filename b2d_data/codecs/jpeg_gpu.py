@@ -113,19 +113,23 @@ class NvJpegEncoder:
 
 
 _ENCODER: list[NvJpegEncoder | None] = []
-#: ``opencv`` never uses the GPU; ``auto`` (default) uses nvJPEG where an NVIDIA GPU and the library are present.
+#: ``nvjpeg`` encodes on the GPU where an NVIDIA GPU and the library are present; ``opencv`` (the default) never
+#: does. With one route process per core sharing one GPU, OpenCV is faster: every process's CUDA context competes
+#: for the GPU with the others and with their GL contexts (one H100, 16 route processes: 55.5 frames/s with OpenCV,
+#: 47.8 with nvJPEG, same machine and run of ``scripts/bench_collect.py``). nvJPEG pays off for a single process.
 ENV_VAR = "B2D_JPEG_ENCODER"
 
 
-def nvjpeg_encoder(quality: int) -> NvJpegEncoder | None:
-    """This process's nvJPEG encoder, or ``None`` without a CUDA device, PyTorch with CUDA, or the library."""
+def nvjpeg_encoder(quality: int, *, force: bool = False) -> NvJpegEncoder | None:
+    """This process's nvJPEG encoder if ``B2D_JPEG_ENCODER=nvjpeg`` (or ``force``) and it can run, else ``None``."""
+    if not force and os.environ.get(ENV_VAR, "opencv").lower() != "nvjpeg":
+        return None
     if _ENCODER:
         enc = _ENCODER[0]
         return enc if enc is not None and enc.quality == quality else None
     enc = None
-    choice = os.environ.get(ENV_VAR, "auto").lower()
     # Checked before importing PyTorch, which costs a second per process on machines without a GPU.
-    if choice == "opencv" or not os.path.isdir("/proc/driver/nvidia/gpus"):
+    if not os.path.isdir("/proc/driver/nvidia/gpus"):
         _ENCODER.append(None)
         return None
     try:

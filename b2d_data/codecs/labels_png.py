@@ -103,14 +103,24 @@ def instance_rgba(tags: np.ndarray, ids: np.ndarray) -> np.ndarray:
     return _instance_pixels(tags, ids, (0, 1, 2, 3))
 
 
-def encode_instance_png(tags: np.ndarray, ids: np.ndarray) -> bytes:
-    """Encode semantic tags (uint8) and instance ids (uint16) as Bench2Drive's RGBA instance PNG."""
-    return encode_png(instance_rgba(tags, ids))
+def encode_instance_png(tags: np.ndarray, ids: np.ndarray, *, packed: np.ndarray | None = None) -> bytes:
+    """Encode semantic tags (uint8) and instance ids (uint16) as Bench2Drive's RGBA instance PNG.
+
+    ``packed``: the same labels already in the file's pixel layout (``CameraFrame.labels``), encoded as they are.
+    """
+    if packed is None:
+        return encode_png(instance_rgba(tags, ids))
+    if packed.dtype != np.uint8 or packed.shape != (*np.shape(tags), 4):
+        raise ValueError(f"packed labels must be (H, W, 4) uint8 like the tags {np.shape(tags)}, got "
+                         f"{packed.dtype} {packed.shape}")  # fmt: skip
+    return encode_png(packed)
 
 
-def write_instance_png(path: str | os.PathLike[str], tags: np.ndarray, ids: np.ndarray) -> int:
+def write_instance_png(
+    path: str | os.PathLike[str], tags: np.ndarray, ids: np.ndarray, *, packed: np.ndarray | None = None
+) -> int:
     """Write an instance PNG; returns the number of bytes written."""
-    return write_bytes(path, encode_instance_png(tags, ids))
+    return write_bytes(path, encode_instance_png(tags, ids, packed=packed))
 
 
 def split_instance(image: np.ndarray, order: ChannelOrder = "BGRA") -> tuple[np.ndarray, np.ndarray]:

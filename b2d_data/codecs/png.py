@@ -36,7 +36,9 @@ def sub_filtered(image: np.ndarray) -> np.ndarray:
     """The PNG scanlines of ``image`` with filter type 1 (SUB): each row's filter byte, then byte − left neighbour."""
     h, w = image.shape[:2]
     c = 1 if image.ndim == 2 else image.shape[2]
-    rows = image.reshape(h, w * c)
+    # A grey image is filtered as it is, strided or not (the renderer's tags are a view of its packed labels):
+    # the subtraction reads it once, where a contiguous copy first would read it twice.
+    rows = image if c == 1 else np.ascontiguousarray(image).reshape(h, w * c)
     out = np.empty((h, w * c + 1), np.uint8)
     out[:, 0] = _FILTER_SUB
     out[:, 1 : 1 + c] = rows[:, :c]
@@ -56,5 +58,5 @@ def encode_png(image: np.ndarray) -> bytes:
     if h == 0 or w == 0:
         raise ValueError(f"PNG image must not be empty, got {image.shape}")
     header = struct.pack(">IIBBBBB", w, h, 8, _COLOUR_TYPE[channels], 0, 0, 0)
-    data = _deflate.compress(sub_filtered(np.ascontiguousarray(image)), LEVEL)
+    data = _deflate.compress(sub_filtered(image), LEVEL)
     return _SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", data) + _chunk(b"IEND", b"")

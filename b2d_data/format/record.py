@@ -15,12 +15,15 @@ class CameraFrame:
     ``depth`` (H, W) float32 metres (linear, along the optical axis; or uint8 metres already rounded as the depth
     PNG stores them, when only the PNG is written), ``semantic`` (H, W) uint8 CARLA tag
     ids, ``instance`` (H, W) uint16 object ids (0 = none; low/high byte go to the G/B channels on disk).
+    ``labels``, when the renderer packed them, is the (H, W, 4) uint8 instance-PNG image of the same tags and ids
+    (``format.label_pixels``): the writer encodes it as it is instead of assembling it again.
     """
 
     rgb: np.ndarray
     depth: np.ndarray | None = None
     semantic: np.ndarray | None = None
     instance: np.ndarray | None = None
+    labels: np.ndarray | None = None
 
 
 @dataclass

@@ -302,7 +302,7 @@ class ClipWriter:
             raise ValueError(f"{where}: {_layout_difference(self._layout, current)} differs from frame 0")
         clip = str(self.temp_dir)
         jobs: list[Job] = [
-            CameraJob(clip, cam, record.index, f.rgb, f.depth, f.semantic, f.instance, self._float_depth)
+            CameraJob(clip, cam, record.index, f.rgb, f.depth, f.semantic, f.instance, self._float_depth, f.labels)
             for cam, f in record.cameras.items()
         ]
         jobs.append(MiscJob(clip, record.index, record.anno, lidar, radar, expert))
@@ -429,6 +429,12 @@ def _check_camera(where: str, cam: str, frame: CameraFrame) -> CameraInfo:
             raise ValueError(f"{where}: camera {cam}: semantic must be uint8 tag ids, got {semantic.dtype}")
         if ids.dtype != np.uint16 and (ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() > 0xFFFF):
             raise ValueError(f"{where}: camera {cam}: instance ids must be integers in [0, 65535] (uint16)")
+    packed = frame.labels
+    if packed is not None and (not all(present) or not isinstance(packed, np.ndarray) or packed.dtype != np.uint8
+                               or packed.shape != (h, w, 4)):  # fmt: skip
+        got = f"{packed.dtype} {packed.shape}" if isinstance(packed, np.ndarray) else type(packed).__name__
+        raise ValueError(f"{where}: camera {cam}: labels must be ({h}, {w}, 4) uint8 beside semantic and instance, "
+                         f"got {got}")  # fmt: skip
     return CameraInfo(width=w, height=h, dense_labels=all(present))
 
 
@@ -483,7 +489,7 @@ def _frame_arrays(jobs: list[Job]) -> list[np.ndarray]:
     arrays: dict[int, np.ndarray] = {}
     for job in jobs:
         if isinstance(job, CameraJob):
-            candidates = [job.rgb, job.depth, job.semantic, job.instance]
+            candidates = [job.rgb, job.depth, job.semantic, job.instance, job.labels]
         else:
             candidates = [job.lidar, job.expert, *(job.radar or {}).values()]
         for arr in candidates:
@@ -495,7 +501,7 @@ def _frame_arrays(jobs: list[Job]) -> list[np.ndarray]:
 def _swap_arrays(jobs: list[Job], by_id: dict[int, object]) -> None:
     for job in jobs:
         if isinstance(job, CameraJob):
-            for attr in ("rgb", "depth", "semantic", "instance"):
+            for attr in ("rgb", "depth", "semantic", "instance", "labels"):
                 value = getattr(job, attr)
                 if value is not None:
                     setattr(job, attr, by_id[id(value)])

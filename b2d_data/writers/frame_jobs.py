@@ -42,6 +42,7 @@ class CameraJob:
     semantic: ArrayArg | None = None
     instance: ArrayArg | None = None
     float_depth: DepthOptions | None = None  # None: no ``.npz`` next to the depth PNG
+    labels: ArrayArg | None = None  # semantic + instance packed as instance-PNG pixels (CameraFrame.labels)
 
     def describe(self) -> str:
         """What the job writes, for error messages."""
@@ -62,7 +63,8 @@ class CameraJob:
         if semantic is not None:
             written += write_semantic_png(layout.image_path(clip, "semantic", self.cam, i), semantic)
             if instance is not None:
-                written += write_instance_png(layout.image_path(clip, "instance", self.cam, i), semantic, instance)
+                written += write_instance_png(layout.image_path(clip, "instance", self.cam, i), semantic, instance,
+                                              packed=resolve(self.labels))  # fmt: skip
         return written
 
 

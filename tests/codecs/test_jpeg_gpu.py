@@ -12,7 +12,7 @@ from PIL import Image
 from b2d_data.codecs.jpeg import JPEG_QUALITY, encode_jpeg_opencv, read_jpeg, read_quantization_tables
 from b2d_data.codecs.jpeg_gpu import nvjpeg_encoder
 
-encoder = nvjpeg_encoder(JPEG_QUALITY)
+encoder = nvjpeg_encoder(JPEG_QUALITY, force=True)
 pytestmark = pytest.mark.skipif(encoder is None, reason="no NVIDIA GPU with nvJPEG here")
 
 

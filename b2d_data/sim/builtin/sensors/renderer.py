@@ -21,6 +21,7 @@ from typing import TypeVar
 import moderngl
 import numpy as np
 
+from b2d_data.format.label_pixels import label_views
 from b2d_data.format.record import CameraFrame
 from b2d_data.sim.builtin.sensors import shaders
 from b2d_data.sim.builtin.sensors.lighting import Lighting
@@ -53,6 +54,18 @@ UE_TO_CV = np.array([[0, 1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0], [0, 0, 0, 1]], d
 _SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software")
 
 
+def _egl_context(index: int | None) -> moderngl.Context:
+    """An EGL context of OpenGL 4.3 or later where the driver has one (for multi-draw), else of 3.3."""
+    kwargs = {"backend": "egl"} if index is None else {"backend": "egl", "device_index": index}
+    try:
+        # Without ``require`` the NVIDIA driver hands out a 3.3 core context, which lacks glMultiDrawArraysIndirect.
+        return moderngl.create_standalone_context(require=430, **kwargs)
+    except Exception as exc:  # glcontext / moderngl raise plain Exception subclasses
+        if "found" in str(exc):  # no such device: let the caller's device scan end
+            raise
+        return moderngl.create_standalone_context(**kwargs)
+
+
 def create_gl_context() -> moderngl.Context:
     """An EGL context on a hardware GPU when one is present, else on Mesa's software rasteriser.
 
@@ -63,11 +76,11 @@ def create_gl_context() -> moderngl.Context:
     os.environ.setdefault("__GL_YIELD", "USLEEP")
     forced = os.environ.get("B2D_EGL_DEVICE")
     if forced is not None:
-        return moderngl.create_standalone_context(backend="egl", device_index=int(forced))
+        return _egl_context(int(forced))
     fallback: moderngl.Context | None = None
     for index in range(16):
         try:
-            ctx = moderngl.create_standalone_context(backend="egl", device_index=index)
+            ctx = _egl_context(index)
         except Exception as exc:  # glcontext raises plain Exception subclasses per failure kind
             if "found" in str(exc):  # "requested device index i, but found n devices"
                 break
@@ -84,7 +97,7 @@ def create_gl_context() -> moderngl.Context:
         else:
             ctx.release()
     if fallback is None:
-        return moderngl.create_standalone_context(backend="egl")
+        return _egl_context(None)
     log.info("rendering on software EGL: %s", fallback.info.get("GL_RENDERER"))
     return fallback
 
@@ -284,17 +297,17 @@ class _Targets:
         self.color = ctx.texture((width, height), 4, dtype="f1")
         # Unlabelled cameras (top-down) bind only the colour target: the other outputs are dropped unwritten.
         self.depth = ctx.texture((width, height), 1, dtype="u1" if depth8 else "f4") if labels else None
-        self.tags = ctx.texture((width, height), 1, dtype="u1") if labels else None
-        self.ids = ctx.texture((width, height), 1, dtype="u2") if labels else None
+        # Tag and instance id in one RGBA8UI target, in the byte order of an instance PNG pixel.
+        self.labels = ctx.texture((width, height), 4, dtype="u1") if labels else None
         self.zbuf = ctx.depth_renderbuffer((width, height))
-        attachments = [self.color, self.depth, self.tags, self.ids] if labels else [self.color]
+        attachments = [self.color, self.depth, self.labels] if labels else [self.color]
         self.fbo = ctx.framebuffer(attachments, self.zbuf)
         self.all_color = self.fbo.color_mask
         off = (False, False, False, False)
         self.no_color = (off,) * len(attachments) if len(attachments) > 1 else off
 
     def release(self) -> None:
-        for obj in (self.fbo, self.color, self.depth, self.tags, self.ids, self.zbuf):
+        for obj in (self.fbo, self.color, self.depth, self.labels, self.zbuf):
             if obj is not None:
                 obj.release()
 
@@ -340,6 +353,9 @@ class Renderer:
         self._lightmap = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint8).tobytes(), dtype="f1")
         self._lightmap_rect = (0.0, 0.0, 1.0, 1.0)
         self.static_triangles = 0
+        # glMultiDrawArraysIndirect is core in OpenGL 4.3 (llvmpipe and the NVIDIA driver both have it).
+        self.multi_draw = self.ctx.version_code >= 430
+        self._indirect: dict[int, moderngl.Buffer] = {}
 
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
@@ -438,6 +454,35 @@ class Renderer:
             "u_sky_tag": shaders.SKY_TAG,
         }
 
+    def _indirect_commands(
+        self, runs: dict[int, list[tuple[int, int]]], slot: int
+    ) -> tuple[moderngl.Buffer, dict[int, int]]:
+        """Upload the draw commands of every material's runs for view ``slot``; returns the buffer and offsets.
+
+        moderngl reads non-indexed indirect commands with a stride of five integers (count, instances, first,
+        base instance, unused). Each view of a frame has its own buffer, so no upload waits for an earlier draw.
+        """
+        total = sum(len(r) for r in runs.values())
+        commands = np.zeros((max(total, 1), 5), np.uint32)
+        offsets: dict[int, int] = {}
+        row = 0
+        for material, material_runs in runs.items():
+            offsets[material] = row
+            if material_runs:
+                block = np.asarray(material_runs, np.uint32)
+                commands[row : row + len(block), 0] = block[:, 1]
+                commands[row : row + len(block), 2] = block[:, 0]
+                row += len(block)
+        commands[:, 1] = 1
+        buffer = self._indirect.get(slot)
+        if buffer is None or buffer.size < commands.nbytes:
+            if buffer is not None:
+                buffer.release()
+            buffer = self.ctx.buffer(reserve=max(commands.nbytes, 4096), dynamic=True)
+            self._indirect[slot] = buffer
+        buffer.write(commands.tobytes())
+        return buffer, offsets
+
     def _targets_for(self, width: int, height: int, labels: bool, slot: int) -> _Targets:
         """The targets of the ``slot``-th view of a batch (created on first use, then reused every frame)."""
         key = (width, height, labels, slot)
@@ -469,23 +514,33 @@ class Renderer:
             "u_cam_pos": tuple(map(float, pose[:3, 3])),
             "u_cam_fwd": tuple(map(float, pose[:3, 0])),
         }
+        camera_uniforms = {**uniforms, **per_camera}
+        static_runs = {
+            material: _visible_runs(tiles, viewproj, pose[:3, 3]) for material, tiles in self._static_batches.items()
+        }
+        indirect = self._indirect_commands(static_runs, slot) if self.multi_draw else None
         for material in DRAW_ORDER:
             dyn = self._dyn_batches.get(material)
-            static = self._static_batches.get(material)
-            runs = _visible_runs(static, viewproj, pose[:3, 3]) if static is not None else []
+            runs = static_runs.get(material, [])
             if dyn is None and not runs:
                 continue
             key = ("scene", int(material), night, wet)
             prog = self._program(key)
-            for name, value in {**uniforms, **per_camera}.items():
+            for name, value in camera_uniforms.items():
                 _set(prog, name, value)
             if dyn is not None:
                 vao = self._vao(key, "dynamic")
                 vao.render(moderngl.TRIANGLES, vertices=int(dyn.count.sum()), first=int(dyn.first[0]))
             if runs:
                 vao = self._vao(key, "static")
-                for first, count in runs:
-                    vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+                if indirect is not None:
+                    # One multi-draw per material instead of one call per visible tile run: the same triangles in
+                    # the same order (identical pixels), without hundreds of driver calls per view.
+                    buffer, offsets = indirect
+                    vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(runs), first=offsets[material])
+                else:
+                    for first, count in runs:
+                        vao.render(moderngl.TRIANGLES, vertices=count, first=first)
         self.ctx.depth_func = "<="
         sky_key = ("sky", light.cloudiness > 0.01)
         sky = self._program(sky_key)
@@ -529,11 +584,13 @@ class Renderer:
             else:
                 depth = np.empty((h, w), np.float32)
                 targets.fbo.read_into(depth, components=1, attachment=1, dtype="f4")
+            labels = np.empty((h, w, 4), np.uint8)
+            targets.fbo.read_into(labels, components=4, attachment=2, dtype="u1")
+            _, instance = label_views(labels)
+            # The tags once more, alone: the semantic PNG filters a contiguous plane ~9× faster than a strided view.
             semantic = np.empty((h, w), np.uint8)
             targets.fbo.read_into(semantic, components=1, attachment=2, dtype="u1")
-            instance = np.empty((h, w), np.uint16)
-            targets.fbo.read_into(instance, components=1, attachment=3, dtype="u2")
-            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance))
+            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance, labels=labels))
         return frames
 
     def close(self) -> None:
@@ -542,4 +599,7 @@ class Renderer:
             for t in self._targets.values():
                 t.release()
             self._targets.clear()
+            for buffer in self._indirect.values():
+                buffer.release()
+            self._indirect.clear()
         self.ctx.release()

@@ -2,7 +2,8 @@
 
 The scene program draws into four colour attachments at once: 0 = RGBA8 colour, 1 = R32F planar depth (metres
 along the optical axis; R8UI uint8 metres, rounded as the depth PNG stores them, when ``DEPTH8``), 2 = R8UI semantic
-tag, 3 = R16UI instance id. It is compiled once per material and weather
+tag and instance id packed as RGBA8UI (tag, id low byte, id high byte, 255: the bytes of an instance PNG pixel, so
+the read-back is the image the PNG encoder takes). It is compiled once per material and weather
 variant (``#define`` switches) because a software rasteriser runs every branch of a shader for every pixel:
 specialised programs keep each pixel's work to what its material needs. The sky program fills the pixels no
 geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and the sky tag.
@@ -139,8 +140,7 @@ in vec2 v_xy;
 #endif
 layout(location = 0) out vec4 f_color;
 DEPTH_OUT
-layout(location = 2) out uint f_tag;
-layout(location = 3) out uint f_instance;
+layout(location = 2) out uvec4 f_labels;
 
 void main() {
     // Lighting, fog and reflections come per vertex; here only per-pixel patterns pick between two colours.
@@ -161,8 +161,7 @@ void main() {
 #endif
     f_color = vec4(clamp(col, 0.0, 1.0), 1.0);
     f_depth = depth_out(v_depth);
-    f_tag = v_ids.x;
-    f_instance = v_ids.y;
+    f_labels = uvec4(v_ids.x, v_ids.y & 255u, (v_ids.y >> 8) & 255u, 255u);
 }
 """
 
@@ -243,13 +242,11 @@ uniform uint u_sky_tag;
 in vec3 v_color;
 layout(location = 0) out vec4 f_color;
 DEPTH_OUT
-layout(location = 2) out uint f_tag;
-layout(location = 3) out uint f_instance;
+layout(location = 2) out uvec4 f_labels;
 void main() {
     f_color = vec4(clamp(v_color, 0.0, 1.0), 1.0);
     f_depth = depth_out(u_sky_depth);
-    f_tag = u_sky_tag;
-    f_instance = 0u;
+    f_labels = uvec4(u_sky_tag, 0u, 0u, 255u);
 }
 """
 

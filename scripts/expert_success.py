@@ -42,7 +42,7 @@ SCENARIOS: tuple[str, ...] = (
     "NonSignalizedJunctionLeftTurnEnterFlow", "EnterActorFlow", "CrossingBicycleFlow",
     # issue 13: highway and interurban
     "InterurbanActorFlow", "HighwayCutIn", "InterurbanAdvancedActorFlow", "MergerIntoSlowTraffic",
-    "MergerIntoSlowTrafficV2",
+    "MergerIntoSlowTrafficV2", "HighwayExit",
     # issue 11: overtaking and give-way
     "ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays",
     "HazardAtSideLaneTwoWays", "VehicleOpensDoorTwoWays", "InvadingTurn",

@@ -121,6 +121,7 @@ class ExpertConfig:
 
     # --- forecasting and collision checks (§1.6) ---
     detection_radius: float = 50.0
+    lane_change_gap_acceptance: bool = True  # hold planned lane changes until a gap opens (lane_change_gap.py)
     forecast_length: float = 2.0  # s
     forecast_length_lane_change: float = 1.1  # s, near a lane change
     lane_change_lookbehind: float = 15.0  # CHANGELANE commands this far behind count as "near"

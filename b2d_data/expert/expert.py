@@ -31,6 +31,7 @@ from b2d_data.expert.forecasting import (
 from b2d_data.expert.hazard_heuristic import should_brake
 from b2d_data.expert.idm import idm_target_speed
 from b2d_data.expert.lane_change import LaneChangePlanner
+from b2d_data.expert.lane_change_gap import LaneChangeGate
 from b2d_data.expert.lateral_controller import LateralPIDController, heading_error, lookahead_index
 from b2d_data.expert.lights_and_signs import StopSignTracker, red_light_target_speed, stop_sign_centre
 from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
@@ -97,6 +98,7 @@ class Expert:
         self.obstacles = ObstacleScenarioManager(config, map)
         self.lane_changes = LaneChangePlanner()
         self.merge = SlowFlowMerge(config, map)
+        self.lane_change_gate = LaneChangeGate(config, map) if config.lane_change_gap_acceptance else None
         self.route: DenseRoute | None = None
         self.state: ExpertState | None = None
         self.blocked_ticks = 0
@@ -117,13 +119,21 @@ class Expert:
         yaw = math.radians(ego.transform.rotation.yaw)
         speed = ego.speed()
         index = route.update_index(position)
-        self.lane_changes.step(snapshot, ego, route)
+        # Route lane changes: across a scenario's flow the gate waits beside the flow for a gap (flows keep moving,
+        # so one comes); elsewhere the planner follows the route's change and, if the new lane has become a standing
+        # queue, holds the old lane and drives on (lane_change.py). One of the two owns a route at a time.
+        gate = self.lane_change_gate if self.lane_change_gate is not None and _scenario_vehicles(snapshot) else None
+        if gate is None:
+            self.lane_changes.step(snapshot, ego, route)
+        lane_change_cap = self.lane_changes.speed_cap if gate is None else math.inf
 
         speed_limit = float(route.speed_limits[index])
-        target_speed = min(speed_limit * cfg.ratio_target_speed_limit, self.lane_changes.speed_cap)
+        target_speed = min(speed_limit * cfg.ratio_target_speed_limit, lane_change_cap)
         if route.is_junction[index : index + cfg.points(cfg.junction_lookahead)].any():
             target_speed = min(target_speed, cfg.max_speed_in_junction)
 
+        if gate is not None:
+            target_speed = min(target_speed, gate.step(snapshot.vehicles(), ego, route, target_speed).target_speed)
         obstacle = self.obstacles.step(snapshot, ego, route, hints, target_speed)
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
@@ -348,3 +358,12 @@ class Expert:
                 out.append(CloseSignal(sign_id, sign.type_id, loc, sign.transform.rotation.yaw,
                                        sign_id == affecting and not self.stop_signs.cleared))
         return tuple(out)
+
+
+#: ``role_name`` of the actors a scenario spawns (``scenarios.framework.SCENARIO_ROLE``; the expert is privileged).
+_SCENARIO_ROLE = "scenario"
+
+
+def _scenario_vehicles(snapshot: Snapshot) -> bool:
+    """Whether any vehicle of a scenario (a flow, a cut-in car, ...) is in the world."""
+    return any(v.role_name == _SCENARIO_ROLE for v in snapshot.vehicles())

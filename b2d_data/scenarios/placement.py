@@ -38,6 +38,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
     opposite_driving_neighbour,
     same_direction_driving_neighbour,
+    same_lane,
     yaw_diff,
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, scenario_class
@@ -109,21 +110,17 @@ class Candidate:
                 return None
             return list(reversed(back)) + ahead[1:], self.trigger
         conn = self.connection
+        if spec.route_path is not None:
+            return spec.route_path(conn, rng)
         approach = float(rng.uniform(*spec.approach))
         departure = float(rng.uniform(*spec.departure))
         back = lane_walk(conn.entry, approach, forward=False, step=step)
         if any(wp.is_junction for wp in back) or len(back) * step < spec.approach[0]:
             return None
-        inside = [conn.start]
-        while inside[-1].is_junction and len(inside) < 200:
-            options = [o for o in inside[-1].next(step) if o.road_id == conn.start.road_id or not o.is_junction]
-            if not options:
-                break
-            inside.append(options[0])
-        after = _departure(conn.exit, departure, spec.merge_left_after, rng)
-        if after is None or any(wp.is_junction for wp in after) or len(after) * step < spec.departure[0]:
+        through = _through_junction(conn, departure, spec.departure[0], spec.merge_left_after, rng)
+        if through is None:
             return None
-        path = list(reversed(back)) + [wp for wp in inside if wp.is_junction] + after
+        path = list(reversed(back)) + through
         offset = float(rng.uniform(*spec.trigger_offset))
         trigger = path[min(round(offset / step), len(back) - 1)]
         return path, trigger
@@ -144,6 +141,29 @@ def _departure(
         return None
     # the next keypoint is one step ahead on the left lane: the planner makes the change between the two
     return own + lane_walk(left, length - keep, step=step)[1:]
+
+
+def _through_junction(
+    conn: JunctionLane,
+    departure: float,
+    min_departure: float,
+    merge_left_after: tuple[float, float] | None = None,
+    rng: np.random.Generator | None = None,
+) -> list[Waypoint] | None:
+    """Lane waypoints 2 m apart through ``conn`` and ``departure`` m beyond it, changing left on the way as
+    :func:`_departure` does when ``merge_left_after`` is given (None when the lane ends within ``min_departure``
+    m or meets another junction)."""
+    step = KEYPOINT_SPACING
+    inside = [conn.start]
+    while inside[-1].is_junction and len(inside) < 200:
+        options = [o for o in inside[-1].next(step) if o.road_id == conn.start.road_id or not o.is_junction]
+        if not options:
+            break
+        inside.append(options[0])
+    after = _departure(conn.exit, departure, merge_left_after, rng)
+    if after is None or any(wp.is_junction for wp in after) or len(after) * step < min_departure:
+        return None
+    return [wp for wp in inside if wp.is_junction] + after
 
 
 @dataclass(frozen=True)
@@ -181,6 +201,10 @@ class Layout:
     #: Junction layouts: after the junction the route keeps its exit lane this far (m), then changes into the lane
     #: on its left (an on-ramp's acceleration lane into the highway); None: it stays on the exit lane.
     merge_left_after: tuple[float, float] | None = None
+    #: Junction layouts: builds the planned lane path and trigger itself (e.g. with lane changes; None: the lane).
+    route_path: Callable[[JunctionLane, np.random.Generator], tuple[list[Waypoint], Waypoint] | None] | None = None
+    #: Parameters that depend on the planned path (e.g. a flow starting behind the route's start).
+    path_parameters: Callable[[JunctionLane | None, list[Waypoint]], dict[str, dict[str, str]] | None] | None = None
 
     @property
     def is_junction(self) -> bool:
@@ -553,6 +577,117 @@ def _slow_flow_beside(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dic
     return []
 
 
+#: HighwayExit: metres of route on the ego's lane before its planned change across the flow; metres between that
+#: change and the junction (or the change into a deceleration lane); where the deceleration lane is at least
+#: ``EXIT_LANE_MIN_WIDTH`` m wide, the share of it before the junction where the route enters it.
+EXIT_START_RUN, EXIT_CHANGE_RUN, EXIT_LANE_SHARE = (15.0, 25.0), (85.0, 105.0), (0.35, 0.55)
+EXIT_LANE_MIN_WIDTH = 3.0
+#: HighwayExit's flow starts this far behind the route's start and ends this far past the junction (m), as in
+#: Bench2Drive's routes (26-28 m behind the trigger point).
+EXIT_FLOW_BEHIND, EXIT_FLOW_AFTER = 28.0, 30.0
+
+
+def _exit_lanes(conn: JunctionLane, lanes: list[JunctionLane]) -> tuple[JunctionLane, Waypoint] | None:
+    """For an exit connection: the flow lane's connection staying on the highway and the ego's lane left of it.
+
+    The flow lane is the exit lane itself where it also goes straight on (Town04), else the lane left of it (a
+    deceleration lane, the generated towns). ``conn`` is an exit when no other lane of its road goes its way.
+    """
+    e = conn.entry
+    sign = e.lane_id > 0
+    others = [o for o in lanes if o.entry.road_id == e.road_id and (o.entry.lane_id > 0) == sign]
+    highway = {o.exit.road_id for o in others if o.entry.lane_id != e.lane_id}
+    if not highway or conn.exit.road_id in highway:
+        return None
+    own = [o for o in others if o.entry.lane_id == e.lane_id and o.exit.road_id in highway]
+    flow_entry = e if own else same_direction_driving_neighbour(e, "left")
+    if flow_entry is None:
+        return None
+    through = [o for o in others if o.entry.lane_id == flow_entry.lane_id and o.exit.road_id in highway]
+    ego_lane = same_direction_driving_neighbour(flow_entry, "left")
+    if not through or ego_lane is None:
+        return None
+    straight = min(through, key=lambda o: abs(o.angle))
+    if conn.angle <= straight.angle:  # the exit leaves to the left
+        return None
+    return straight, ego_lane
+
+
+def _highway_exit(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """A highway (>= 80 km/h) lane leaving by an exit on the right, with a flow lane and the ego's lane left of it."""
+    found = _exit_lanes(conn, lanes)
+    return (
+        found is not None
+        and min(town.speed_limit(conn.entry), town.speed_limit(found[0].exit)) >= HIGHWAY_MIN_LIMIT
+        and conn.angle - found[0].angle < MERGE_MAX_ANGLE  # a ramp leaving at a shallow angle, not a side street
+    )
+
+
+def _wide_run_back(wp: Waypoint, min_width: float, cap: float) -> float:
+    """Metres back from ``wp`` along its lane while the lane is at least ``min_width`` m wide (2 m steps)."""
+    run, current = 0.0, wp
+    while run < cap:
+        prev = move_along(current, KEYPOINT_SPACING, forward=False, step=KEYPOINT_SPACING)
+        if prev is None or prev.is_junction or prev.lane_width < min_width or prev.lane_id != current.lane_id:
+            break
+        run, current = run + KEYPOINT_SPACING, prev
+    return run
+
+
+def _exit_route(conn: JunctionLane, rng: np.random.Generator) -> tuple[list[Waypoint], Waypoint] | None:
+    """The ego's lane, a change right across the flow lane, (a change into the deceleration lane,) the exit."""
+    step = KEYPOINT_SPACING
+    junction = conn.start.get_junction()
+    found = _exit_lanes(conn, junction_lanes(junction)) if junction is not None else None
+    if found is None:
+        return None
+    flow_entry = same_direction_driving_neighbour(found[1], "right")
+    if flow_entry is None:
+        return None
+    d_fe = 0.0
+    decel = not same_lane(flow_entry, conn.entry)
+    if decel:
+        wide = _wide_run_back(conn.entry, EXIT_LANE_MIN_WIDTH, 200.0)
+        if wide < 30.0:
+            return None
+        d_fe = step * round(float(rng.uniform(*EXIT_LANE_SHARE)) * wide / step)
+    d_gf = d_fe + step * round(float(rng.uniform(*EXIT_CHANGE_RUN)) / step)
+    d_start = d_gf + step * round(float(rng.uniform(*EXIT_START_RUN)) / step)
+    f_gf = move_along(flow_entry, d_gf, forward=False, step=step)
+    g_gf = same_direction_driving_neighbour(f_gf, "left") if f_gf is not None else None
+    if g_gf is None:
+        return None
+    g_run = lane_walk(g_gf, d_start - d_gf, forward=False, step=step)
+    f_next = move_along(f_gf, step, step=step)
+    if len(g_run) * step < d_start - d_gf or f_next is None:
+        return None
+    path = list(reversed(g_run)) + lane_walk(f_next, d_gf - d_fe - step, step=step)
+    if decel:
+        e_next = same_direction_driving_neighbour(move_along(path[-1], step, step=step) or path[-1], "right")
+        if e_next is None:
+            return None
+        path += lane_walk(e_next, d_fe - step, step=step)
+    through = _through_junction(conn, float(rng.uniform(30.0, 40.0)), 30.0)
+    if through is None or any(wp.is_junction for wp in path):
+        return None
+    return path + through, path[int(rng.integers(0, 2))]
+
+
+def _exit_flow(conn: JunctionLane | None, path: list[Waypoint]) -> dict[str, dict[str, str]] | None:
+    """The flow: from ``EXIT_FLOW_BEHIND`` m behind the route's start on the lane right of it to
+    ``EXIT_FLOW_AFTER`` m past the junction on the highway."""
+    junction = conn.start.get_junction() if conn is not None else None
+    found = _exit_lanes(conn, junction_lanes(junction)) if conn is not None and junction is not None else None
+    beside = same_direction_driving_neighbour(path[0], "right")
+    if found is None or beside is None:
+        return None
+    source = walk_back_to_source(beside, EXIT_FLOW_BEHIND, step=2.0)
+    sink = move_along(found[0].exit, EXIT_FLOW_AFTER)
+    if sink is None or sink.is_junction:
+        return None
+    return {"start_actor_flow": _xml_location(source), "end_actor_flow": _xml_location(sink)}
+
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
@@ -680,6 +815,10 @@ LAYOUTS: dict[str, Layout] = {
         "lane beside the highway's right lane", turns=("straight", "left", "right"),
         junction_ok=_ramp_into_acceleration_lane, junction_extra=_slow_flow_beside, approach=(40.0, 50.0),
         departure=(95.0, 105.0), trigger_offset=(2.0, 6.0), merge_left_after=(16.0, 30.0)),
+    "HighwayExit": Layout(
+        "highway_exit", "a highway (>= 80 km/h) exit on the right, with a flow lane to cross and the ego's lane left "
+        "of it", turns=("straight", "right"), junction_ok=_highway_exit, approach=(20.0, 30.0),
+        departure=(30.0, 40.0), route_path=_exit_route, path_parameters=_exit_flow),
 }  # fmt: skip
 # V2 (Town06's entries with their own lanes) merges the same way on generated towns; only the background differs.
 LAYOUTS["MergerIntoSlowTrafficV2"] = LAYOUTS["MergerIntoSlowTraffic"]
@@ -960,6 +1099,11 @@ def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str
             "flow_speed": _value("10"),
             "source_dist_interval": {"from": _int(rng, 11, 14), "to": _int(rng, 30, 34)},
         }
+    if scenario_type == "HighwayExit":
+        return {
+            "flow_speed": _value(_int(rng, 10, 15)),
+            "source_dist_interval": {"from": _int(rng, 11, 20), "to": _int(rng, 33, 46)},
+        }
     if scenario_type == "YieldToEmergencyVehicle":
         return {"distance": _value(_int(rng, 26, 30))}
     if scenario_type == "ParkingExit":
@@ -981,9 +1125,27 @@ def route_id(seed: int, scenario_type: str, k: int) -> str:
     return str((int(seed) * 100 + index) * 10000 + k + 1)
 
 
+#: No keypoint this close after a lane change of the path (m): the planner makes the change itself, jumping a few
+#: metres ahead on the new lane, and a keypoint inside that jump would make the route trace back.
+LANE_CHANGE_KEYPOINT_GAP = 10.0
+
+
 def _keypoints(path: Sequence[Waypoint]) -> tuple[Location, ...]:
-    """Keypoints of a lane path: its points outside junctions (the planner finds the connection between them)."""
-    return tuple(wp.transform.location for wp in path if not wp.is_junction)
+    """Keypoints of a lane path: its points outside junctions (the planner finds the connection between them),
+    except those within ``LANE_CHANGE_KEYPOINT_GAP`` m after a change to a neighbouring lane."""
+    out: list[Location] = []
+    change: Location | None = None
+    for k, wp in enumerate(path):
+        if wp.is_junction:
+            continue
+        prev = path[k - 1] if k > 0 else None
+        loc = wp.transform.location
+        if prev is not None and not prev.is_junction and prev.road_id == wp.road_id and prev.lane_id != wp.lane_id:
+            change = prev.transform.location
+        if change is not None and loc.distance_2d(change) < LANE_CHANGE_KEYPOINT_GAP:
+            continue
+        out.append(loc)
+    return tuple(out)
 
 
 def _deviation(dense: DenseRoute, path: Sequence[Waypoint]) -> float:
@@ -1005,6 +1167,12 @@ def _route_for(
         return None
     params = _sample_parameters(candidate.scenario_type, rng)
     params.update({k: dict(v) for k, v in candidate.fixed.items()})
+    spec = LAYOUTS[candidate.scenario_type]
+    if spec.path_parameters is not None:
+        derived = spec.path_parameters(candidate.connection, path)
+        if derived is None:
+            return None
+        params.update(derived)
     t = trigger.transform
     config = ScenarioConfig(
         name=f"{candidate.scenario_type}_{index}", type=candidate.scenario_type,

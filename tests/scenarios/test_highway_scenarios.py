@@ -330,3 +330,57 @@ def test_merger_clip_loads_with_the_flow_cars_annotated(tmp_path, scenario_type)
     lane = _lane_of(town, route.scenarios[0].other_parameters["start_actor_flow"])
     on_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == lane]
     assert on_lane and all(b["type_id"].startswith("vehicle.") for b in on_lane)
+
+
+# ------------------------------------------------------------------------------------------------ HighwayExit
+def test_highway_exit_ego_crosses_the_flow_lane_between_flow_cars_and_takes_the_exit(tmp_path):
+    run, world_map, route = drive("all", "HighwayExit", tmp=tmp_path)
+    assert run.success, run.infractions
+    params = route.scenarios[0].other_parameters
+    start = world_map.get_waypoint(route.waypoints[0])
+    flow_lane = (start.get_right_lane().road_id, start.get_right_lane().lane_id)
+    assert _lane_of(world_map, params["start_actor_flow"])[1] == flow_lane[1]  # the flow runs on the lane beside
+    assert (run.ego[0][5], run.ego[0][6]) != flow_lane  # the ego starts left of it ...
+    entered = next(i for i, e in enumerate(run.ego) if (e[5], e[6]) == flow_lane)  # ... and drives onto it
+    ego = run.ego[entered]
+    yaw = math.radians(ego[3])
+    on_lane = [(x - ego[1]) * math.cos(yaw) + (y - ego[2]) * math.sin(yaw)
+               for x, y, _, road, lane, _ in run.scenario[entered].values() if (road, lane) == flow_lane]  # fmt: skip
+    # a flow was there: cars on that lane ahead of the ego and behind it when it moved in, none within 5 m
+    assert any(a > 0 for a in on_lane) and any(a < 0 for a in on_lane)
+    assert all(abs(a) > 5.0 for a in on_lane)
+    # the flow went on along the highway at its speed; the ego left it for the exit road at the route's end
+    flow_speed = float(params["flow_speed"]["value"])
+    assert max(s[2] for tick in run.scenario for s in tick.values()) == pytest.approx(flow_speed, abs=0.5)
+    end = world_map.get_waypoint(route.waypoints[-1])
+    assert (run.ego[-1][5], run.ego[-1][6]) == (end.road_id, end.lane_id)
+    assert end.road_id not in {s[3] for tick in run.scenario for s in tick.values()}
+    assert all(t.startswith("vehicle.") for t in run.type_ids.values())
+
+
+def test_highway_exit_places_on_town04_exits(carla_maps_dir):
+    from b2d_data.maps import load_opendrive
+
+    town = load_opendrive(carla_maps_dir / "Town04.xodr")
+    for route in placement.make_routes(town, "HighwayExit", 2, seed=0):
+        params = route.scenarios[0].other_parameters
+        start = town.get_waypoint(route.waypoints[0])
+        source = town.get_waypoint(Location(*(float(params["start_actor_flow"][a]) for a in "xyz")))
+        # the route starts on the 90 km/h highway with the flow's lane to its right, and ends off the highway
+        assert town.speed_limit(start) >= 80.0
+        assert source.lane_id == start.get_right_lane().lane_id
+        end = town.get_waypoint(route.waypoints[-1])
+        sink = town.get_waypoint(Location(*(float(params["end_actor_flow"][a]) for a in "xyz")))
+        assert end.road_id != sink.road_id
+
+
+def test_one_highway_exit_clip_loads_with_the_flow_annotated(tmp_path):
+    clip = short_clip(tmp_path, "all", "HighwayExit", 50.0)
+    assert clip.name.startswith("HighwayExit_Town100_Route")
+    assert load_clip(clip) > 0
+    town = load_map(TownSource(preset="all").materialise(tmp_path / "town"))
+    route = placement.make_routes(town, "HighwayExit", 1, seed=0)[0]
+    beside = town.get_waypoint(route.waypoints[0]).get_right_lane()
+    on_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (beside.road_id, beside.lane_id)]
+    # the flow's lane is removed from background traffic: the cars annotated on it are the flow's
+    assert on_lane and all(b["type_id"].startswith("vehicle.") for b in on_lane)

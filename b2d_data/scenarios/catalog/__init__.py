@@ -9,6 +9,7 @@ from b2d_data.scenarios.catalog.enter_flow import EnterActorFlow
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane, HazardAtSideLaneTwoWays
 from b2d_data.scenarios.catalog.highway import HighwayCutIn
+from b2d_data.scenarios.catalog.highway_exit import HighwayExit
 from b2d_data.scenarios.catalog.interurban import InterurbanActorFlow, InterurbanAdvancedActorFlow
 from b2d_data.scenarios.catalog.invading_turn import InvadingTurn
 from b2d_data.scenarios.catalog.junction_turns import (
@@ -64,3 +65,6 @@ __all__ += [
 __all__ += [
     "SequentialLaneChange",
 ]  # fmt: skip
+
+# Issue 13: the highway exit across a flow.
+__all__ += ["HighwayExit"]

@@ -146,6 +146,8 @@ class BackgroundTrafficManager:
         self._ego_index = 0
         self._junctions: list[_RouteJunction] = []
         self._removed_offsets: set[int] = set()
+        # the removed lanes themselves: road vehicles of the ego's lane follow the route, which may change into one
+        self._removed_lanes: set[tuple[int, int]] = set()
         self._max_speed: float | None = None
         self._stop_front = False
         self._stop_back = False
@@ -176,6 +178,7 @@ class BackgroundTrafficManager:
         # a new route starts from the default behaviour
         self.settings = dataclasses.replace(self._defaults)
         self._removed_offsets.clear()
+        self._removed_lanes.clear()
         self._max_speed = None
         self._stop_front = self._stop_back = False
         self._road_sources = True
@@ -222,6 +225,7 @@ class BackgroundTrafficManager:
         if offset is not None:
             self._removed_offsets.add(offset)
         key = (lane.road_id, lane.lane_id)
+        self._removed_lanes.add(key)
         for vid, veh in list(self._vehicles.items()):
             wp = veh.agent.path.waypoints[0]
             on_lane = (wp.road_id, wp.lane_id) == key
@@ -229,8 +233,10 @@ class BackgroundTrafficManager:
                 self._destroy(vid)
 
     def readd_road_lane(self, offset: int) -> None:
-        """Spawn again on the ego-relative lane ``offset`` (0 ego lane, 1 right, −1 left)."""
+        """Spawn again on the ego-relative lane ``offset`` (0 ego lane, 1 right, −1 left); every removed lane is
+        open to road vehicles again."""
         self._removed_offsets.discard(int(offset))
+        self._removed_lanes.clear()
 
     def set_max_speed(self, speed: float | None) -> None:
         """Cap background speed (m/s); ``None`` lifts the cap."""
@@ -574,6 +580,8 @@ class BackgroundTrafficManager:
                junction_id: int | None = None, source_key: tuple[Any, ...] = (), lane_offset: int = 0) -> int | None:
         s = self.settings
         if wp.is_junction or wp.lane_width < s.min_lane_width:
+            return None
+        if source == "road" and (wp.road_id, wp.lane_id) in self._removed_lanes:
             return None
         from b2d_data.maps import LaneType
 

@@ -1,0 +1,315 @@
+"""Gap acceptance for the route's planned lane changes (a deviation from PDM-Lite, which steers into a planned
+change wherever the route puts it and brakes to a stop when its forecast meets a car of the target lane).
+
+Until a gap is accepted the dense route is held on the current lane past the planned change (the route points are
+moved to the current lane's centre, commands LANEFOLLOW), and the speed is set to drift the ego beside a gap of
+the target lane: faster than the gap to catch one ahead, slower to let one come back to it, stopping only at the
+last point where the change can still be made. A gap is accepted when the ego fits between its leader and follower
+with a clearance that grows with their speeds and the speed differences; then the route gets a smooth ramp into the
+target lane from just ahead of the ego and, until the ramp is driven, the ego follows the gap's leader by IDM.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from b2d_data.expert.config import ExpertConfig
+from b2d_data.expert.idm import idm_target_speed
+from b2d_data.expert.route_processing import DenseRoute
+from b2d_data.expert.route_shifting import smooth_transition
+from b2d_data.format.road_option import RoadOption
+from b2d_data.sim.api import ActorState
+
+if TYPE_CHECKING:
+    from b2d_data.maps import Map, Waypoint
+
+log = logging.getLogger(__name__)
+
+_CHANGES = (RoadOption.CHANGELANELEFT, RoadOption.CHANGELANERIGHT)
+
+
+@dataclass(frozen=True)
+class GapConfig:
+    """Distances in metres, times in seconds, speeds in m/s."""
+
+    lookahead: float = 60.0  # gaps are sought from this far before the planned change
+    search_back: float = 70.0  # target-lane vehicles this far behind the ego count
+    search_ahead: float = 90.0
+    front_margin: float = 3.0  # bumper gap to the gap's leader: margin + headway × own speed + closing braking
+    front_headway: float = 0.3
+    rear_margin: float = 3.0  # bumper gap to the follower: margin + headway × its speed + Δv² / (2 × its braking)
+    rear_headway: float = 0.4
+    follower_brake: float = 3.0  # the follower closes in at most at its speed difference, braking this hard
+    ego_acceleration: float = 2.0  # what the ego gains while it moves over, when slower than the follower
+    comfortable_brake: float = 2.5
+    stop_deceleration: float = 2.0  # the braking curve toward the last point where a held change may begin
+    stop_margin: float = 2.0
+    position_gain: float = 0.4  # 1/s: speed offset per metre between the ego and the gap's middle
+    ramp_time: float = 3.0  # the lane change ramp is speed × this long, within the bounds below
+    ramp_min: float = 12.0
+    ramp_max: float = 30.0
+    ramp_lead: float = 2.0  # the ramp starts this far ahead of the ego
+    end_margin: float = 5.0  # a held change must start this far before the next change or junction
+    early_commit: float = 8.0  # a gap may be taken this far before the planned change (the ramp starts there)
+
+
+@dataclass
+class _Change:
+    """One planned lane change of the route: dense indices and its state."""
+
+    start: int  # first point of the planned change
+    end: int  # first point on the target lane after it
+    to_right: bool
+    last_start: int  # the latest point where a held change may begin
+    hold_end: int = 0  # the held points reach this far (the next change or junction), past ``last_start``
+    target_keys: frozenset[tuple[int, int]] = frozenset()
+    committed: bool = False
+    ramp_end: int = -1
+    held: bool = False
+
+
+@dataclass
+class _Car:
+    s: float  # along the route (m)
+    half: float  # half length (m)
+    speed: float
+    actor: ActorState
+
+
+@dataclass
+class GapDecision:
+    """What the gate wants this frame: a speed cap (inf: none) and the vehicle it is aligned to."""
+
+    target_speed: float = math.inf
+    leader_id: int | None = None
+    holding: bool = False
+
+
+def planned_changes(route: DenseRoute, town: Map | None, cfg: ExpertConfig, gap: GapConfig) -> list[_Change]:
+    """The route's planned lane changes (CHANGELANE blocks of the original commands outside junctions)."""
+    cmds = route.original_commands
+    n = len(route)
+    out: list[_Change] = []
+    i = 0
+    while i < n:
+        if cmds[i] not in _CHANGES:
+            i += 1
+            continue
+        j = i
+        while j < n and cmds[j] == cmds[i]:
+            j += 1
+        out.append(_Change(start=i, end=min(j, n - 1), to_right=cmds[i] == RoadOption.CHANGELANERIGHT, last_start=n))
+        i = j
+    # a held change must begin before the next change or junction, leaving room for its ramp
+    for k, change in enumerate(out):
+        limit = out[k + 1].start if k + 1 < len(out) else n - 1
+        junction = np.flatnonzero(route.is_junction[change.end : limit])
+        if junction.size:
+            limit = change.end + int(junction[0])
+        change.last_start = max(change.start, limit - cfg.points(gap.ramp_min + gap.end_margin))
+        change.hold_end = max(change.last_start, limit)
+        if town is not None:
+            keys = set()
+            for idx in range(change.end, min(limit, n), cfg.points_per_meter):
+                wp = route.waypoint(idx)
+                keys.add((wp.road_id, wp.lane_id))
+            for idx in range(
+                max(0, change.start - cfg.points(gap.lookahead + gap.search_back)), change.start, cfg.points_per_meter
+            ):
+                wp = route.waypoint(idx)
+                other = wp.get_right_lane() if change.to_right else wp.get_left_lane()
+                if other is not None:
+                    keys.add((other.road_id, other.lane_id))
+            change.target_keys = frozenset(keys)
+    return out
+
+
+def _source_centre(wp: Waypoint, to_right: bool, previous: np.ndarray) -> np.ndarray:
+    """The current-lane centre beside ``wp``: ``wp`` itself or its neighbour on the side the change comes from,
+    whichever continues the held path."""
+    here = np.array([wp.transform.location.x, wp.transform.location.y, wp.transform.location.z])
+    other = wp.get_left_lane() if to_right else wp.get_right_lane()
+    if other is None:
+        return here
+    there = np.array([other.transform.location.x, other.transform.location.y, other.transform.location.z])
+    return there if np.linalg.norm(there[:2] - previous[:2]) < np.linalg.norm(here[:2] - previous[:2]) else here
+
+
+def hold_lane(route: DenseRoute, change: _Change) -> None:
+    """Move the route points of the planned change and after it (up to ``last_start``) onto the current lane."""
+    if change.held:
+        return
+    previous = route.original_points[max(0, change.start - 1)]
+    for idx in range(change.start, change.hold_end):
+        previous = _source_centre(route.waypoint(idx), change.to_right, previous)
+        route.points[idx] = previous
+        route.commands[idx] = RoadOption.LANEFOLLOW
+    change.held = True
+
+
+def commit_change(route: DenseRoute, change: _Change, begin: int, length: int) -> None:
+    """A smooth ramp from the held points to the original (target-lane) points over [begin, begin + length)."""
+    begin = max(begin, change.start)
+    end = min(len(route), begin + max(1, length))
+    command = RoadOption.CHANGELANERIGHT if change.to_right else RoadOption.CHANGELANELEFT
+    for idx in range(begin, end):
+        k = smooth_transition((idx - begin) / max(1, length))
+        route.points[idx] = k * route.original_points[idx] + (1.0 - k) * route.points[idx]
+        route.commands[idx] = command
+    for idx in range(end, max(end, change.hold_end)):
+        route.points[idx] = route.original_points[idx]
+        route.commands[idx] = route.original_commands[idx]
+    change.committed = True
+    change.ramp_end = end
+
+
+@dataclass
+class LaneChangeGate:
+    """Holds each planned lane change of the route until a gap of the target lane is accepted."""
+
+    config: ExpertConfig
+    town: Map | None
+    gap: GapConfig = field(default_factory=GapConfig)
+    changes: list[_Change] | None = None
+
+    def step(
+        self, snapshot_vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute, desired_speed: float
+    ) -> GapDecision:
+        """The gate's decision for this frame (may rewrite the route's working points)."""
+        cfg, gap = self.config, self.gap
+        if self.changes is None:
+            self.changes = planned_changes(route, self.town, cfg, gap)
+        index = route.index
+        change = next((c for c in self.changes if not c.committed or c.ramp_end > index), None)
+        if change is None or index < change.start - cfg.points(gap.lookahead):
+            return GapDecision()
+        cars = self._target_lane_cars(snapshot_vehicles, ego, route, change)
+        ego_s = index / cfg.points_per_meter
+        speed = ego.speed()
+        half = ego.bounding_box.extent.x
+        if change.committed:
+            leader = min((c for c in cars if c.s > ego_s), key=lambda c: c.s, default=None)
+            if leader is None:
+                return GapDecision()
+            return GapDecision(self._follow(desired_speed, speed, half, leader, ego_s), leader.actor.id)
+        hold_lane(route, change)
+        slots = self._slots(cars, speed, half)
+        here = next((s for s in slots if s[0] <= ego_s <= s[1]), None)
+        if here is not None and index >= change.start - cfg.points(gap.early_commit):
+            length = cfg.points(float(np.clip(speed * gap.ramp_time, gap.ramp_min, gap.ramp_max)))
+            commit_change(route, change, index + cfg.points(gap.ramp_lead), length)
+            log.debug("lane change into gap %s at route point %d", here, index)
+            leader = min((c for c in cars if c.s > ego_s), key=lambda c: c.s, default=None)
+            target = self._follow(desired_speed, speed, half, leader, ego_s) if leader is not None else math.inf
+            return GapDecision(target, leader.actor.id if leader is not None else None)
+        room = (change.last_start - index) / cfg.points_per_meter
+        target = self._align(cars, ego_s, half, desired_speed, room)
+        # never past the last point where the change can begin: a gentle braking curve down to it
+        stop = math.sqrt(2.0 * gap.stop_deceleration * max(0.0, room - gap.stop_margin))
+        return GapDecision(min(target, stop), None, holding=True)
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+    def _target_lane_cars(
+        self, vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute, change: _Change
+    ) -> list[_Car]:
+        """Vehicles on the change's target lane near the ego, with their position along the route."""
+        cfg, gap = self.config, self.gap
+        lo = max(0, route.index - cfg.points(gap.search_back))
+        hi = min(len(route), route.index + cfg.points(gap.search_ahead))
+        pts = route.original_points[lo : hi : cfg.points_per_meter, :2]
+        out = []
+        if pts.shape[0] == 0 or self.town is None:
+            return out
+        for v in vehicles:
+            if v.id == ego.id:
+                continue
+            loc = np.array([v.location.x, v.location.y])
+            d = np.linalg.norm(pts - loc[None, :], axis=1)
+            k = int(np.argmin(d))
+            if d[k] > 8.0:
+                continue
+            wp = self.town.get_waypoint(v.location)
+            if wp is None or (wp.road_id, wp.lane_id) not in change.target_keys:
+                continue
+            out.append(
+                _Car((lo + k * cfg.points_per_meter) / cfg.points_per_meter, v.bounding_box.extent.x, v.speed(), v)
+            )
+        out.sort(key=lambda c: c.s)
+        return out
+
+    def _front_need(self, speed: float, leader: _Car) -> float:
+        gap = self.gap
+        closing = max(0.0, speed - leader.speed)
+        return gap.front_margin + gap.front_headway * speed + closing * closing / (2.0 * gap.comfortable_brake)
+
+    def _rear_need(self, speed: float, follower: _Car) -> float:
+        gap = self.gap
+        closing = max(0.0, follower.speed - speed)
+        # the follower brakes while the ego speeds up: they close in by Δv² / (2 (b + a))
+        return gap.rear_margin + gap.rear_headway * follower.speed + closing * closing / (
+            2.0 * (gap.follower_brake + gap.ego_acceleration)
+        )
+
+    def _slots(self, cars: list[_Car], speed: float, half: float) -> list[tuple[float, float, float]]:
+        """Where the ego's centre may be for each gap at its current speed: (from, to, the gap's speed)."""
+        out = []
+        bounds: list[tuple[_Car | None, _Car | None]] = list(zip([None, *cars], [*cars, None]))
+        for follower, leader in bounds:
+            lo = -math.inf if follower is None else follower.s + follower.half + half + self._rear_need(speed, follower)
+            hi = math.inf if leader is None else leader.s - leader.half - half - self._front_need(speed, leader)
+            if lo <= hi:
+                speeds = [c.speed for c in (follower, leader) if c is not None]
+                out.append((lo, hi, float(np.mean(speeds)) if speeds else math.inf))
+        return out
+
+    def _align(self, cars: list[_Car], ego_s: float, half: float, desired: float, room: float) -> float:
+        """A speed that brings the ego beside the nearest gap that fits at the gap's own speed, among those it can
+        reach within ``room`` metres of driving."""
+        if not cars:
+            return desired
+        best, best_cost = None, math.inf
+        for follower, leader in zip([None, *cars], [*cars, None]):
+            gap_speed = float(np.mean([c.speed for c in (follower, leader) if c is not None]))
+            lo = -math.inf if follower is None else follower.s + follower.half + self._rear_need(gap_speed, follower)
+            hi = math.inf if leader is None else leader.s - leader.half - self._front_need(gap_speed, leader)
+            if hi - lo < 2.0 * half + 2.0:
+                continue
+            middle = (lo + hi) / 2.0 if math.isfinite(lo + hi) else (lo + 10.0 if math.isfinite(lo) else hi - 10.0)
+            r = ego_s - middle
+            # time to reach the gap: catching up is limited by the desired speed, dropping back by the gap's speed
+            if r < 0:
+                time = -r / max(desired - gap_speed, 0.5)
+                travel = gap_speed * time - r
+            else:  # dropping back at half the gap's speed
+                time = r / max(0.5 * gap_speed, 0.5)
+                travel = r
+            if travel > room:
+                continue
+            cost = time
+            if cost < best_cost:
+                best, best_cost = (middle, gap_speed), cost
+        if best is None:
+            return desired
+        middle, gap_speed = best
+        return float(np.clip(gap_speed - self.gap.position_gain * (ego_s - middle), 0.0, desired))
+
+    def _follow(self, desired: float, speed: float, half: float, leader: _Car, ego_s: float) -> float:
+        """IDM behind the gap's leader (its distance along the route)."""
+        cfg = self.config
+        distance = leader.s - ego_s
+        return idm_target_speed(
+            cfg,
+            desired,
+            speed,
+            leader.half + half,
+            leader.speed,
+            distance,
+            cfg.idm_leading_vehicle_s0,
+            cfg.idm_leading_vehicle_T,
+        )

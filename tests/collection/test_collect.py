@@ -521,7 +521,7 @@ def test_interrupting_prints_no_traceback_and_records_the_routes(collection, sho
     stderr_path = tmp_path / "stderr.txt"
     with open(stderr_path, "wb") as stderr:
         proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], stdout=subprocess.DEVNULL,
-                                stderr=stderr, start_new_session=True)  # fmt: skip
+                                stderr=stderr, start_new_session=True, preexec_fn=_sigint_default)  # fmt: skip
         helpers: set[int] = set()
         try:
             deadline = time.monotonic() + 240
@@ -549,6 +549,12 @@ def test_interrupting_prints_no_traceback_and_records_the_routes(collection, sho
     interrupted = [r["route_id"] for r in records if r["event"] == rl.EVENT_INTERRUPTED]
     assert interrupted and sorted(interrupted) == sorted(rl.interrupted_routes(records))
     assert all(r["detected"] == "on interrupt" for r in records if r["event"] == rl.EVENT_INTERRUPTED)
+
+
+def _sigint_default() -> None:
+    """In the child: Ctrl-C as from a terminal. A shell starts background jobs with SIGINT ignored (a CI script run
+    with ``&``), and Python started so never turns SIGINT into KeyboardInterrupt: the interrupt would be lost."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _assert_all_exit(pids: set[int], timeout: float = 10.0) -> None:

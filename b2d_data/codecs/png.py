@@ -36,8 +36,8 @@ def sub_filtered(image: np.ndarray) -> np.ndarray:
     """The PNG scanlines of ``image`` with filter type 1 (SUB): each row's filter byte, then byte − left neighbour."""
     h, w = image.shape[:2]
     c = 1 if image.ndim == 2 else image.shape[2]
-    # A grey image is filtered as it is, strided or not (the renderer's tags are a view of its packed labels):
-    # the subtraction reads it once, where a contiguous copy first would read it twice.
+    # A grey image is filtered as it is, strided or not: a view (e.g. one channel of a packed image) is read once
+    # by the subtraction instead of first being copied.
     rows = image if c == 1 else np.ascontiguousarray(image).reshape(h, w * c)
     out = np.empty((h, w * c + 1), np.uint8)
     out[:, 0] = _FILTER_SUB

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+
 def label_views(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(tags (H, W) uint8, ids (H, W) little-endian uint16), both views of a contiguous (H, W, 4) uint8 array."""
     if packed.dtype != np.uint8 or packed.ndim != 3 or packed.shape[2] != 4 or not packed.flags.c_contiguous:

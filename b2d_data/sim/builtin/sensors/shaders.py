@@ -141,6 +141,7 @@ in vec2 v_xy;
 layout(location = 0) out vec4 f_color;
 DEPTH_OUT
 layout(location = 2) out uvec4 f_labels;
+layout(location = 3) out uint f_tag;
 
 void main() {
     // Lighting, fog and reflections come per vertex; here only per-pixel patterns pick between two colours.
@@ -162,6 +163,7 @@ void main() {
     f_color = vec4(clamp(col, 0.0, 1.0), 1.0);
     f_depth = depth_out(v_depth);
     f_labels = uvec4(v_ids.x, v_ids.y & 255u, (v_ids.y >> 8) & 255u, 255u);
+    f_tag = v_ids.x;
 }
 """
 
@@ -243,10 +245,12 @@ in vec3 v_color;
 layout(location = 0) out vec4 f_color;
 DEPTH_OUT
 layout(location = 2) out uvec4 f_labels;
+layout(location = 3) out uint f_tag;
 void main() {
     f_color = vec4(clamp(v_color, 0.0, 1.0), 1.0);
     f_depth = depth_out(u_sky_depth);
     f_labels = uvec4(u_sky_tag, 0u, 0u, 255u);
+    f_tag = u_sky_tag;
 }
 """
 

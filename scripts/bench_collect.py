@@ -195,7 +195,7 @@ def instrument(timer: StageTimer, warmup: int) -> dict[str, int]:
     timer.patch(suite.SensorSuite, "capture", "sensors: actor meshes, ray scene, IMU/GNSS")
     timer.patch(lidar.Lidar, "scan", "sensors: LiDAR rays")
     timer.patch(radar.Radar, "scan", "sensors: radar rays")
-    timer.patch(renderer.Renderer, "render", "render: read-back + RGBA->RGB")
+    timer.patch(renderer.Renderer, "render", "render: colour planes + read-back")
     draw = timer.wrap("render: draw calls (CPU)", renderer.Renderer._draw)
     gpu_wait = timer.wrap("render: GPU wait (glFinish)", lambda ctx: ctx.finish())
 
@@ -220,7 +220,7 @@ def instrument(timer: StageTimer, warmup: int) -> dict[str, int]:
     timer.patch(clip_writer.ClipWriter, "abort", "writer: close / abort")
     timer.patch(clip_writer.ClipWriter, "close", "writer: close / abort")
     encoders = {
-        "write_jpeg": "encode: RGB JPEG x7", "write_depth_png": "encode: depth PNG x6",
+        "write_jpeg": "encode: RGB JPEG x7", "write_jpeg_planes": "encode: RGB JPEG x7", "write_depth_png": "encode: depth PNG x6",
         "write_semantic_png": "encode: semantic PNG x6", "write_instance_png": "encode: instance PNG x6",
         "write_laz": "encode: LiDAR LAZ", "write_radar": "encode+write: radar h5",
         "write_anno": "encode+write: annotation json.gz", "write_expert": "encode: expert npz",

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import multiprocessing
+import multiprocessing.util
 import os
 import shutil
 import signal
@@ -87,6 +88,7 @@ class CollectConfig:
             lidar_azimuth_steps=self.lidar_azimuth_steps,
             radar_v004_mounts=FormatVersion(self.format_version) is FormatVersion.V004,
             float_depth=FormatVersion(self.format_version).float_depth,  # else only the uint8 depth PNG is written
+            jpeg_planes="gpu",  # colour is only written as JPEG: converted on a GPU, no RGB read back
         )  # fmt: skip
 
     def resolved_encode_workers(self) -> int:
@@ -210,6 +212,11 @@ def encoder_pool(workers: int) -> ProcessPoolExecutor | None:
             workers, mp_context=multiprocessing.get_context(method), initializer=_encoder_init, initargs=(os.getpid(),)
         )
         _ENCODERS[workers] = pool
+        # When this process is itself a pool worker, its exit joins its children; the encoders live until their owner
+        # dies, so that join would never return (a route pool with encoders hung at shutdown). Stop them first, and
+        # before the exit closes the pool's call queue (its finalizers have priority 10): the stop travels on it.
+        multiprocessing.util.Finalize(pool, pool.shutdown, kwargs={"wait": True, "cancel_futures": True},
+                                      exitpriority=100)  # fmt: skip
     return pool
 
 

@@ -17,13 +17,25 @@ class CameraFrame:
     ids, ``instance`` (H, W) uint16 object ids (0 = none; low/high byte go to the G/B channels on disk).
     ``labels``, when the renderer packed them, is the (H, W, 4) uint8 instance-PNG image of the same tags and ids
     (``format.label_pixels``): the writer encodes it as it is instead of assembling it again.
+    ``jpeg_planes``, when the renderer converted the colour on the GPU, is the image as the JPEG's Y (H, W), Cb and
+    Cr (H/2, W/2) uint8 planes (``codecs.jpeg.jpeg_planes``), and ``rgb`` is None.
     """
 
-    rgb: np.ndarray
+    rgb: np.ndarray | None
     depth: np.ndarray | None = None
     semantic: np.ndarray | None = None
     instance: np.ndarray | None = None
     labels: np.ndarray | None = None
+    jpeg_planes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(height, width) of the image, from whichever form it has."""
+        if self.rgb is not None:
+            return self.rgb.shape[0], self.rgb.shape[1]
+        if self.jpeg_planes is None:
+            raise ValueError("camera frame has neither rgb nor jpeg_planes")
+        return self.jpeg_planes[0].shape[0], self.jpeg_planes[0].shape[1]
 
 
 @dataclass

@@ -275,6 +275,8 @@ class RigConfig:
     cameras: tuple[str, ...] = ("front", "front_left", "front_right", "back", "back_left", "back_right", "top_down")
     dense_labels: bool = True  # depth / semantic / instance for the six surround cameras
     float_depth: bool = True  # depth as float32 metres; False: the uint8 metres the depth PNG stores (less read-back)
+    # Colour as the JPEG's Y/Cb/Cr planes (CameraFrame.jpeg_planes, no rgb): "off", "on", or "gpu" (hardware only).
+    jpeg_planes: str = "off"
     lidar: bool = True
     lidar_azimuth_steps: int = 1000  # 64 channels × this many rays per sweep (600k pts/s at 10 Hz ≈ 940)
     radar: bool = True

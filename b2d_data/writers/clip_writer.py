@@ -25,6 +25,7 @@ import numpy as np
 import b2d_data
 from b2d_data.codecs import layout
 from b2d_data.codecs.anno_json import validate_anno
+from b2d_data.codecs.jpeg import check_jpeg_planes
 from b2d_data.codecs.format_info import CameraInfo, ClipFormatInfo, write_format_info
 from b2d_data.codecs.radar_h5 import RADAR_DATASETS
 from b2d_data.format.names import ClipName
@@ -302,7 +303,8 @@ class ClipWriter:
             raise ValueError(f"{where}: {_layout_difference(self._layout, current)} differs from frame 0")
         clip = str(self.temp_dir)
         jobs: list[Job] = [
-            CameraJob(clip, cam, record.index, f.rgb, f.depth, f.semantic, f.instance, self._float_depth, f.labels)
+            CameraJob(clip, cam, record.index, f.rgb, f.depth, f.semantic, f.instance, self._float_depth, f.labels,
+                      f.jpeg_planes)  # fmt: skip
             for cam, f in record.cameras.items()
         ]
         jobs.append(MiscJob(clip, record.index, record.anno, lidar, radar, expert))
@@ -405,11 +407,20 @@ def _check_camera(where: str, cam: str, frame: CameraFrame) -> CameraInfo:
     spec = CAMERA_BY_FOLDER.get(cam)
     if spec is None:
         raise ValueError(f"{where}: unknown camera {cam!r}; expected one of {[c.folder for c in ALL_CAMERAS]}")
-    rgb = frame.rgb
-    if not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
+    rgb, planes = frame.rgb, frame.jpeg_planes
+    if (rgb is None) == (planes is None):
+        raise ValueError(f"{where}: camera {cam}: give either rgb or jpeg_planes")
+    if planes is not None:
+        try:
+            check_jpeg_planes(tuple(planes))  # type: ignore[arg-type]
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{where}: camera {cam}: {exc}") from None
+        h, w = planes[0].shape
+    elif not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
         got = f"{rgb.dtype} {rgb.shape}" if isinstance(rgb, np.ndarray) else type(rgb).__name__
         raise ValueError(f"{where}: camera {cam}: rgb must be (H, W, 3) uint8, got {got}")
-    h, w = rgb.shape[:2]
+    else:
+        h, w = rgb.shape[:2]
     dense = (frame.depth, frame.semantic, frame.instance)
     present = [a is not None for a in dense]
     if any(present) and not spec.has_dense_labels:
@@ -489,7 +500,7 @@ def _frame_arrays(jobs: list[Job]) -> list[np.ndarray]:
     arrays: dict[int, np.ndarray] = {}
     for job in jobs:
         if isinstance(job, CameraJob):
-            candidates = [job.rgb, job.depth, job.semantic, job.instance, job.labels]
+            candidates = [job.rgb, job.depth, job.semantic, job.instance, job.labels, *(job.jpeg_planes or ())]
         else:
             candidates = [job.lidar, job.expert, *(job.radar or {}).values()]
         for arr in candidates:
@@ -505,6 +516,8 @@ def _swap_arrays(jobs: list[Job], by_id: dict[int, object]) -> None:
                 value = getattr(job, attr)
                 if value is not None:
                     setattr(job, attr, by_id[id(value)])
+            if job.jpeg_planes is not None:
+                job.jpeg_planes = tuple(by_id[id(p)] for p in job.jpeg_planes)  # type: ignore[assignment]
         else:
             if job.lidar is not None:
                 job.lidar = by_id[id(job.lidar)]  # type: ignore[assignment]

@@ -13,7 +13,7 @@ from b2d_data.codecs import layout
 from b2d_data.codecs.anno_json import write_anno
 from b2d_data.codecs.depth import write_depth_npz, write_depth_png
 from b2d_data.codecs.expert_npz import write_expert
-from b2d_data.codecs.jpeg import write_jpeg
+from b2d_data.codecs.jpeg import write_jpeg, write_jpeg_planes
 from b2d_data.codecs.labels_png import write_instance_png, write_semantic_png
 from b2d_data.codecs.laz import write_laz
 from b2d_data.codecs.radar_h5 import write_radar
@@ -37,12 +37,13 @@ class CameraJob:
     clip_dir: str
     cam: str
     index: int
-    rgb: ArrayArg
+    rgb: ArrayArg | None
     depth: ArrayArg | None = None
     semantic: ArrayArg | None = None
     instance: ArrayArg | None = None
     float_depth: DepthOptions | None = None  # None: no ``.npz`` next to the depth PNG
     labels: ArrayArg | None = None  # semantic + instance packed as instance-PNG pixels (CameraFrame.labels)
+    jpeg_planes: tuple[ArrayArg, ArrayArg, ArrayArg] | None = None  # the image as Y, Cb, Cr (instead of rgb)
 
     def describe(self) -> str:
         """What the job writes, for error messages."""
@@ -51,7 +52,12 @@ class CameraJob:
     def run(self) -> int:
         """Write the files; returns the number of bytes written."""
         clip, i = self.clip_dir, self.index
-        written = write_jpeg(layout.image_path(clip, "rgb", self.cam, i), resolve(self.rgb))
+        rgb_path = layout.image_path(clip, "rgb", self.cam, i)
+        if self.jpeg_planes is not None:
+            y, cb, cr = (resolve(p) for p in self.jpeg_planes)
+            written = write_jpeg_planes(rgb_path, (y, cb, cr))  # type: ignore[arg-type]
+        else:
+            written = write_jpeg(rgb_path, resolve(self.rgb))
         depth, semantic, instance = resolve(self.depth), resolve(self.semantic), resolve(self.instance)
         if depth is not None:
             written += write_depth_png(layout.image_path(clip, "depth", self.cam, i), depth)

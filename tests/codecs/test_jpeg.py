@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from b2d_data.codecs._rgba import rgba_parent
-from b2d_data.codecs.jpeg import encode_jpeg, encode_jpeg_opencv, read_jpeg, read_quantization_tables, write_jpeg
+from b2d_data.codecs.jpeg import (
+    encode_jpeg,
+    encode_jpeg_opencv,
+    encode_jpeg_planes,
+    jpeg_planes,
+    planes_to_rgb,
+    read_jpeg,
+    read_quantization_tables,
+    write_jpeg,
+)
 from b2d_data.format.errors import B2DFormatError
 
 
@@ -95,3 +104,47 @@ def test_garbage_and_missing(tmp_path: Path) -> None:
         read_jpeg(b"\xff\xd8" + b"\x00" * 50 + b"\xff\xd9", name="x.jpg")
     with pytest.raises(ValueError):
         encode_jpeg(np.zeros((4, 4), np.uint8))
+
+
+def test_planes_of_primaries_by_hand() -> None:
+    # Y = (19595 R + 38470 G + 7471 B + 2^15) >> 16; Cb, Cr = (... + 128·2^16 + 2^15 − 1) >> 16.
+    # Red: Y = (4996725 + 32768) >> 16 = 76; Cb = (−2820045 + 8421375) >> 16 = 85; Cr = (8355840 + 8421375) >> 16 = 255.
+    # Blue: Y = (1905105 + 32768) >> 16 = 29; Cb = 255; Cr = (−1358895 + 8421375) >> 16 = 107.
+    for colour, want in (
+        ((255, 0, 0), (76, 85, 255)),
+        ((0, 0, 255), (29, 255, 107)),
+        ((255, 255, 255), (255, 128, 128)),
+    ):
+        rgb = np.empty((2, 2, 3), np.uint8)
+        rgb[:] = colour
+        y, cb, cr = jpeg_planes(rgb)
+        assert (y == want[0]).all() and cb[0, 0] == want[1] and cr[0, 0] == want[2], colour
+
+
+def test_chroma_rounding_bias_alternates_by_column() -> None:
+    # Grey (0,0,0) has Cb 128; (0,0,2) has Cb (65536 + 8421375) >> 16 = 129. Each 2×2 block holds two of each:
+    # sum 514, so block 0 gives (514 + 1) >> 2 = 128 and block 1 gives (514 + 2) >> 2 = 129.
+    rgb = np.zeros((2, 4, 3), np.uint8)
+    rgb[:, 1::2, 2] = 2
+    _, cb, _ = jpeg_planes(rgb)
+    assert cb.tolist() == [[128, 129]]
+
+
+def test_planes_encode_to_opencvs_file() -> None:
+    # Height and width multiples of 16: libjpeg pads nothing, so the file is OpenCV's byte for byte.
+    rgb = smooth_rgb(48, 64)
+    assert encode_jpeg_planes(jpeg_planes(rgb)) == encode_jpeg(rgb)
+    np.testing.assert_array_equal(read_jpeg(encode_jpeg_planes(jpeg_planes(rgb))), read_jpeg(encode_jpeg(rgb)))
+
+
+def test_planes_shapes_are_checked() -> None:
+    y = np.zeros((4, 6), np.uint8)
+    with pytest.raises(ValueError, match="H/2, W/2"):
+        encode_jpeg_planes((y, np.zeros((2, 2), np.uint8), np.zeros((2, 3), np.uint8)))
+    with pytest.raises(ValueError, match="even"):
+        jpeg_planes(np.zeros((3, 4, 3), np.uint8))
+
+
+def test_planes_to_rgb_is_close_to_the_image() -> None:
+    rgb = smooth_rgb(32, 48)
+    assert np.abs(planes_to_rgb(jpeg_planes(rgb)).astype(int) - rgb).mean() < 3.0

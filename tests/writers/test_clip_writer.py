@@ -28,6 +28,7 @@ from b2d_data.codecs import (
 )
 from b2d_data.codecs.anno_json import AnnoSchemaError
 from b2d_data.codecs.depth import depth_to_png_pixels
+from b2d_data.codecs.jpeg import jpeg_planes
 from b2d_data.format.names import ClipName
 from b2d_data.format.record import FrameRecord
 from b2d_data.format.version import FormatVersion
@@ -306,3 +307,34 @@ def test_expert_feature_is_recorded_only_with_expert_files(tmp_path: Path, recor
     assert info is not None and not info.expert_assessment and info.expert_feature is None
     with pytest.raises(TypeError, match="JSON-serialisable"):
         ClipWriter(tmp_path / "c", CLIP, expert_feature={"shape": np.zeros(3)})
+
+
+def test_jpeg_planes_write_the_images_in_sync_and_pool(tmp_path: Path, record_factory: RecordFactory) -> None:
+    # The renderer may hand colour over as the JPEG's planes (no rgb): same files, sync or through the pool.
+    records = [record_factory(i, seed=3) for i in range(2)]
+    as_planes = [record_factory(i, seed=3) for i in range(2)]
+    for rec in as_planes:
+        for frame in rec.cameras.values():
+            frame.jpeg_planes, frame.rgb = jpeg_planes(frame.rgb), None
+    rgb_dir = write_clip(tmp_path / "rgb", records)
+    for name, kwargs in (("sync", {}), ("pool", {"workers": 2})):
+        planes_dir = write_clip(tmp_path / name, as_planes, **kwargs)
+        assert listing(planes_dir) == listing(rgb_dir)
+        for rel in sorted(p.relative_to(rgb_dir) for p in rgb_dir.glob("camera/rgb_*/*.jpg")):
+            a, b = read_jpeg(rgb_dir / rel).astype(int), read_jpeg(planes_dir / rel).astype(int)
+            assert np.abs(a - b).mean() < 1.0, rel  # codec noise between two libjpeg-turbo builds
+        assert_clip_matches(planes_dir, records)
+
+
+def test_a_camera_needs_rgb_or_planes(tmp_path: Path, record_factory: RecordFactory) -> None:
+    with ClipWriter(tmp_path, CLIP) as writer:
+        record = record_factory(0)
+        record.cameras["front"].rgb = None
+        with pytest.raises(ValueError, match="front: give either rgb or jpeg_planes"):
+            writer.write(record)
+        record = record_factory(0)
+        y, cb, _ = jpeg_planes(record.cameras["back"].rgb)
+        record.cameras["back"].jpeg_planes, record.cameras["back"].rgb = (y, cb, cb[:-1]), None
+        with pytest.raises(ValueError, match="back: 4:2:0 planes"):
+            writer.write(record)
+        writer.abort()

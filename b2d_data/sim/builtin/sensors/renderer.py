@@ -16,7 +16,7 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Literal, TypeVar
 
 import moderngl
 import numpy as np
@@ -52,6 +52,9 @@ def _vertex_layout(program: moderngl.Program) -> tuple[str, ...]:
 UE_TO_CV = np.array([[0, 1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
 
 _SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software")
+
+#: When the renderer hands colour over as JPEG planes: never, always, or on a hardware GPU only.
+JpegPlanes = Literal["off", "on", "gpu"]
 
 
 def _egl_context(index: int | None) -> moderngl.Context:
@@ -293,8 +296,18 @@ def noise_texture(size: int = 256, seed: int = 7) -> np.ndarray:
 class _Targets:
     """Colour (and, for labelled cameras, depth, tag and id) targets plus a depth buffer of one resolution."""
 
-    def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool, depth8: bool) -> None:
+    def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool, depth8: bool,
+                 planes: bool = False) -> None:  # fmt: skip
         self.color = ctx.texture((width, height), 4, dtype="f1")
+        # The JPEG's planes (``planes``): full-size Y, half-size Cb and Cr, each its own one-byte target.
+        self.planes: tuple[moderngl.Texture, ...] = ()
+        self.luma_fbo = self.chroma_fbo = None
+        if planes:
+            half = (width // 2, height // 2)
+            self.planes = (ctx.texture((width, height), 1, dtype="u1"), ctx.texture(half, 1, dtype="u1"),
+                           ctx.texture(half, 1, dtype="u1"))  # fmt: skip
+            self.luma_fbo = ctx.framebuffer([self.planes[0]])
+            self.chroma_fbo = ctx.framebuffer(list(self.planes[1:]))
         # Unlabelled cameras (top-down) bind only the colour target: the other outputs are dropped unwritten.
         self.depth = ctx.texture((width, height), 1, dtype="u1" if depth8 else "f4") if labels else None
         # Tag and instance id in one RGBA8UI target, in the byte order of an instance PNG pixel.
@@ -311,7 +324,8 @@ class _Targets:
         self.no_color = (off,) * len(attachments) if len(attachments) > 1 else off
 
     def release(self) -> None:
-        for obj in (self.fbo, self.color, self.depth, self.labels, self.tags, self.zbuf):
+        for obj in (self.fbo, self.luma_fbo, self.chroma_fbo, *self.planes, self.color, self.depth, self.labels,
+                    self.tags, self.zbuf):  # fmt: skip
             if obj is not None:
                 obj.release()
 
@@ -334,15 +348,23 @@ class Renderer:
     """Renders camera views of a static mesh (uploaded once) plus a per-frame dynamic mesh."""
 
     def __init__(
-        self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False
+        self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False,
+        jpeg_planes: JpegPlanes = "off",
     ) -> None:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
         self.depth8 = depth8
+        self._planes_vao: tuple[moderngl.VertexArray, moderngl.VertexArray] | None = None
         self.near = near
         self.far = far
         self.tile_size = tile_size
         self.gl_renderer = self.ctx.info.get("GL_RENDERER", "")
+        self.hardware = not any(name in self.gl_renderer.lower() for name in _SOFTWARE_RENDERERS)
+        if jpeg_planes not in ("off", "on", "gpu"):
+            raise ValueError(f"jpeg_planes must be 'off', 'on' or 'gpu', got {jpeg_planes!r}")
+        # Colour handed over as the JPEG's 4:2:0 planes (``CameraFrame.jpeg_planes``, no RGB) where the size is even.
+        # "gpu": only on a hardware GPU; llvmpipe spends more CPU on the conversion pass than libjpeg does.
+        self.jpeg_planes = jpeg_planes == "on" or (jpeg_planes == "gpu" and self.hardware)
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
@@ -491,8 +513,32 @@ class Renderer:
         """The targets of the ``slot``-th view of a batch (created on first use, then reused every frame)."""
         key = (width, height, labels, slot)
         if key not in self._targets:
-            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8)
+            planes = self.jpeg_planes and width % 2 == 0 and height % 2 == 0
+            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8, planes)
         return self._targets[key]
+
+    def _planes_vaos(self) -> tuple[moderngl.VertexArray, moderngl.VertexArray]:
+        """The luma and chroma passes (one viewport-covering triangle each, no vertex buffer)."""
+        if self._planes_vao is None:
+            vaos = []
+            for fragment in (shaders.PLANES_LUMA, shaders.PLANES_CHROMA):
+                prog = self.ctx.program(vertex_shader=shaders.PLANES_VERTEX, fragment_shader=fragment)
+                _set(prog, "u_color", 2)
+                vaos.append(self.ctx.vertex_array(prog, []))
+            self._planes_vao = (vaos[0], vaos[1])
+        return self._planes_vao
+
+    def _convert_planes(self, targets: _Targets) -> None:
+        """Draw the colour target's Y, Cb, Cr planes into their targets."""
+        luma, chroma = self._planes_vaos()
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        targets.color.use(2)
+        w, h = targets.color.size
+        for fbo, vao, size in ((targets.luma_fbo, luma, (w, h)), (targets.chroma_fbo, chroma, (w // 2, h // 2))):
+            assert fbo is not None
+            fbo.use()
+            fbo.viewport = (0, 0, *size)
+            vao.render(moderngl.TRIANGLES, vertices=3)
 
     def _draw(self, view: CameraView, light: Lighting, uniforms: dict[str, object], slot: int = 0) -> _Targets:
         k = view.intrinsic()
@@ -571,16 +617,31 @@ class Renderer:
         # Every view gets its own targets and all are drawn before any is read back: the rasteriser threads work
         # on one camera while this thread prepares the next, and read-backs do not stall between draws.
         drawn = [self._draw(view, lighting, uniforms, slot) for slot, view in enumerate(views)]
+        for targets in drawn:
+            if targets.planes:
+                self._convert_planes(targets)
         frames = []
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
-            # Reading RGBA is about twice as fast as letting GL convert to RGB. RGB is a view of a fresh RGBA array
-            # (each frame owns its pixels): the JPEG encoders drop the alpha in their own conversion, saving a copy.
-            rgba = np.empty((h, w, 4), np.uint8)
-            targets.fbo.read_into(rgba, components=4, attachment=0)
-            rgb = rgba[..., :3]
+            rgb: np.ndarray | None = None
+            planes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+            if targets.planes:
+                planes = (np.empty((h, w), np.uint8), np.empty((h // 2, w // 2), np.uint8),
+                          np.empty((h // 2, w // 2), np.uint8))  # fmt: skip
+                assert targets.luma_fbo is not None and targets.chroma_fbo is not None
+                # Read through framebuffers as the other one-byte targets are (the driver's fast path).
+                targets.luma_fbo.read_into(planes[0], viewport=(0, 0, w, h), components=1, dtype="u1")
+                for k in (1, 2):
+                    targets.chroma_fbo.read_into(planes[k], viewport=(0, 0, w // 2, h // 2), components=1,
+                                                 attachment=k - 1, dtype="u1")  # fmt: skip
+            else:
+                # Reading RGBA is about twice as fast as letting GL convert to RGB. RGB is a view of a fresh RGBA
+                # array (each frame owns its pixels): the JPEG encoders drop the alpha in their own conversion.
+                rgba = np.empty((h, w, 4), np.uint8)
+                targets.fbo.read_into(rgba, components=4, attachment=0)
+                rgb = rgba[..., :3]
             if not view.labels:
-                frames.append(CameraFrame(rgb=rgb))
+                frames.append(CameraFrame(rgb=rgb, jpeg_planes=planes))
                 continue
             if self.depth8:
                 depth = np.empty((h, w), np.uint8)
@@ -594,7 +655,8 @@ class Renderer:
             # The semantic PNG filters a contiguous plane ~9× faster than a strided view of the labels.
             semantic = np.empty((h, w), np.uint8)
             targets.fbo.read_into(semantic, components=1, attachment=3, dtype="u1")
-            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance, labels=labels))
+            frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance, labels=labels,
+                                      jpeg_planes=planes))  # fmt: skip
         return frames
 
     def close(self) -> None:

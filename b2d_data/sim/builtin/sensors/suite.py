@@ -89,7 +89,8 @@ class SensorSuite:
         self._geolocate = geolocate
         cams = [c for c in config.cameras if c in CAMERA_BY_FOLDER]
         self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
-        self.renderer = Renderer(depth8=not config.float_depth) if self._camera_specs else None
+        self.renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes)  # type: ignore[arg-type]
+                         if self._camera_specs else None)  # fmt: skip
         if self.renderer is not None and len(scene.lamps):
             self.renderer.set_lightmap(*scene.lightmap())
         self.caster = RayCaster()

@@ -7,8 +7,11 @@ into the same triangles, and reads IMU, GNSS and speedometer from the ego state.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import pickle
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -42,6 +45,25 @@ if TYPE_CHECKING:
 
 Geolocator = Callable[[Location], tuple[float, float, float]]
 
+#: Static scenes this process has built, by road layout (least recently used first). A route process runs route
+#: after route on the same few towns, and a town's scenery stays where it is from route to route, as a CARLA town's
+#: does: meshing it took half of a route's set-up.
+_SCENES: OrderedDict[bytes, StaticScene] = OrderedDict()
+_SCENES_KEPT = 2
+
+
+def town_scene(layout: RoadLayout) -> StaticScene:
+    """The static scene of a road layout, built once per process (the scenery is the town's, not the route's)."""
+    key = hashlib.blake2b(pickle.dumps(layout, protocol=5), digest_size=16).digest()
+    scene = _SCENES.get(key)
+    if scene is None:
+        scene = build_static_scene(layout, seed=0)
+        _SCENES[key] = scene
+        while len(_SCENES) > _SCENES_KEPT:
+            _SCENES.popitem(last=False)
+    _SCENES.move_to_end(key)
+    return scene
+
 
 @dataclass
 class CaptureTimings:
@@ -65,7 +87,8 @@ class SensorSuite:
 
     def __init__(self, map: Map | None, config: RigConfig = RigConfig(), seed: int = 0) -> None:  # noqa: A002
         layout = layout_from_map(map) if map is not None else RoadLayout([])
-        self._setup(build_static_scene(layout, seed), config, seed, geolocator_of(map))
+        # ``seed`` drives the sensor noise; the scenery is the town's (``town_scene``).
+        self._setup(town_scene(layout), config, seed, geolocator_of(map))
         self.map = map
 
     @classmethod

@@ -113,3 +113,21 @@ def test_traffic_light_head_fills_its_level_box():
     assert lit.sum() == 12  # one box of three glows
     # Green is the lowest lamp, on the face the level box's +x axis points to (yaw 90°: +y, towards the traffic).
     assert lamps.vertices[lit][..., 2].max() < 3.0 and lamps.vertices[lit][..., 1].min() >= 5.25 - 1e-6
+
+
+def test_town_scene_is_built_once_per_layout_whatever_the_route_seed():
+    from b2d_data.sim.builtin.sensors import suite
+    from b2d_data.sim.builtin.sensors.map_mesh import RoadLayout
+
+    suite._SCENES.clear()
+    layout = crossroads_layout()
+    first = suite.town_scene(layout)
+    # An equal layout (rebuilt, not the same object) gets the very same scene: the scenery is the town's.
+    assert suite.town_scene(crossroads_layout()) is first
+    np.testing.assert_array_equal(first.mesh.vertices, build_static_scene(layout, seed=0).mesh.vertices)
+    other = suite.town_scene(RoadLayout(layout.lanes[:2]))
+    assert other is not first and len(other.mesh) < len(first.mesh)
+    # Two layouts are kept; a third pushes out the least recently used one.
+    suite.town_scene(crossroads_layout())
+    suite.town_scene(RoadLayout(layout.lanes[:1]))
+    assert suite.town_scene(crossroads_layout()) is first and len(suite._SCENES) == 2

@@ -12,7 +12,8 @@ def test_gpu_machine_runs_a_quarter_more_route_processes_than_cores() -> None:
     assert auto_layout(cores=3, gpus=2) == Layout(workers=3, encode_workers=0)
 
 
-def test_cpu_machine_runs_one_route_with_an_encoder_pool() -> None:
-    # llvmpipe spreads one route's rendering over every core: one route, min(4, cores) encoders beside it.
-    assert auto_layout(cores=2, gpus=0) == Layout(workers=1, encode_workers=2)
-    assert auto_layout(cores=32, gpus=0) == Layout(workers=1, encode_workers=4)
+def test_cpu_machine_runs_one_route_per_core_up_to_four() -> None:
+    # llvmpipe spreads only the draws over the cores; the rest of a frame is serial, so routes run side by side.
+    assert auto_layout(cores=2, gpus=0) == Layout(workers=2, encode_workers=0)
+    assert auto_layout(cores=32, gpus=0) == Layout(workers=4, encode_workers=0)
+    assert auto_layout(cores=1, gpus=0) == Layout(workers=1, encode_workers=0)

@@ -344,7 +344,8 @@ def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(coll
     out = tmp_path / "data"
     out.mkdir()
     shutil.copytree(collection / "maps", out / "maps")  # the HD-map export is tested above; skip its 5 s here
-    args = _args(short_routes, out, "--encode-workers", "1")  # with an encoder process, which must die too
+    # One route at a time (the count below), with an encoder process, which must die too.
+    args = _args(short_routes, out, "--workers", "1", "--encode-workers", "1")
     helpers = _kill_mid_collection(args, out)
     assert len(_clips(out)) == 1 and _temporaries(out), "expected one clip and one half-written clip"
     half_written = sorted(str(p.relative_to(out)) for p in out.glob(".*.tmp-*"))
@@ -517,7 +518,7 @@ def test_interrupting_prints_no_traceback_and_records_the_routes(collection, sho
     out.mkdir()
     shutil.copytree(collection / "maps", out / "maps")
     ctrl_c = how.startswith("ctrl-c")
-    args = _args(short_routes, out, "--encode-workers", "1", *(["--workers", "2"] if ctrl_c else []))
+    args = _args(short_routes, out, "--encode-workers", "1", "--workers", "2" if ctrl_c else "1")
     stderr_path = tmp_path / "stderr.txt"
     with open(stderr_path, "wb") as stderr:
         proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], stdout=subprocess.DEVNULL,

@@ -415,12 +415,10 @@ def _check_camera(where: str, cam: str, frame: CameraFrame) -> CameraInfo:
             check_jpeg_planes(tuple(planes))  # type: ignore[arg-type]
         except (ValueError, TypeError) as exc:
             raise ValueError(f"{where}: camera {cam}: {exc}") from None
-        h, w = planes[0].shape
     elif not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
         got = f"{rgb.dtype} {rgb.shape}" if isinstance(rgb, np.ndarray) else type(rgb).__name__
         raise ValueError(f"{where}: camera {cam}: rgb must be (H, W, 3) uint8, got {got}")
-    else:
-        h, w = rgb.shape[:2]
+    h, w = frame.size
     dense = (frame.depth, frame.semantic, frame.instance)
     present = [a is not None for a in dense]
     if any(present) and not spec.has_dense_labels:

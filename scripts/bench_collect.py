@@ -366,6 +366,8 @@ def main() -> None:
                 **{k: round(1e3 * v / max(1, frames), 1) for k, v in parts.items()},
                 "rest of the loop": round(1e3 * (loops - sum(parts.values())) / max(1, frames), 1),
             }
+            # Route-process time outside any route: pool start-up, and the last routes' tail while others idle.
+            figures["route_share_of_wall"] = round(sum(r.duration for r in results) / (workers * wall), 3)
             figures["setup_s_per_route"] = round(
                 sum(r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
             figures.update(pipeline_frames=frames, pipeline_wall_s=round(wall, 2), pipeline_fps=frames / wall,
@@ -447,6 +449,8 @@ def _report(f: dict[str, Any]) -> None:
         print(f"  frame loops alone (route set-up left out): {f['loop_fps']:.2f} frames/s")
         per_frame = ", ".join(f"{k} {v:.1f}" for k, v in f["pipeline_ms_per_frame"].items())
         print(f"  route process wall ms per frame: {per_frame}; set-up {f['setup_s_per_route']:.1f} s per route")
+        print(f"  route processes spent {100 * f['route_share_of_wall']:.0f} % of the wall in routes (the rest: "
+              "pool start-up, and the tail while the last routes finish)")
         if f["errors"]:
             print(f"  {len(f['errors'])} route(s) failed with an error: {f['errors'][:3]}")
         if "bound_fps" in f:

@@ -71,7 +71,7 @@ def jpeg_planes(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     Integer arithmetic as libjpeg does it: each component is rounded from 16-bit fixed point (Cb/Cr round half
     down), and each chroma sample is the sum of its 2×2 block plus a bias of 1 and 2 on alternate columns, over 4.
-    The renderer computes the same planes on the GPU (``shaders.PLANES_*``); this is the reference.
+    The renderer computes the same planes on the GPU (``shaders.PLANES_COMPUTE``); this is the reference.
     """
     _check_rgb(rgb)
     h, w = rgb.shape[:2]

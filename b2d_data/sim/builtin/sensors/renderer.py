@@ -2,7 +2,7 @@
 
 Each camera is drawn once into an RGBA8 colour target, an R32F planar-depth target (R8UI uint8 metres with
 ``depth8``), an RGBA8UI target holding tag and instance id as instance-PNG pixels and an R8UI tag target, each read
-back straight into the array a :class:`CameraFrame` holds. With ``jpeg_planes`` two small passes turn the colour
+back straight into the array a :class:`CameraFrame` holds. With ``jpeg_planes`` a compute shader turns the colour
 into the JPEG's Y, Cb, Cr planes, which are read back instead of the colour. The
 projection is built from the camera's K exactly as ``CameraSpec.intrinsic`` gives it (principal point at the image
 centre), with image row 0 at the top, so a world point projected with K and the world→camera matrix lands on the
@@ -355,7 +355,7 @@ class Renderer:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
         self.depth8 = depth8
-        self._planes_vao: tuple[moderngl.VertexArray, moderngl.VertexArray] | None = None
+        self._planes_program: moderngl.ComputeShader | None = None
         self.near = near
         self.far = far
         self.tile_size = tile_size
@@ -366,6 +366,12 @@ class Renderer:
         # Colour handed over as the JPEG's 4:2:0 planes (``CameraFrame.jpeg_planes``, no RGB) where the size is even.
         # "gpu": only on a hardware GPU; llvmpipe spends more CPU on the conversion pass than libjpeg does.
         self.jpeg_planes = jpeg_planes == "on" or (jpeg_planes == "gpu" and self.hardware)
+        if self.jpeg_planes and self.ctx.version_code < 430:
+            # The planes are computed by a compute shader (OpenGL 4.3).
+            if jpeg_planes == "on":
+                raise RuntimeError(f"jpeg_planes='on' needs OpenGL 4.3 compute shaders; {self.gl_renderer} "
+                                   f"offers OpenGL {self.ctx.version_code}")  # fmt: skip
+            self.jpeg_planes = False
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
@@ -518,28 +524,19 @@ class Renderer:
             self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8, planes)
         return self._targets[key]
 
-    def _planes_vaos(self) -> tuple[moderngl.VertexArray, moderngl.VertexArray]:
-        """The luma and chroma passes (one viewport-covering triangle each, no vertex buffer)."""
-        if self._planes_vao is None:
-            vaos = []
-            for fragment in (shaders.PLANES_LUMA, shaders.PLANES_CHROMA):
-                prog = self.ctx.program(vertex_shader=shaders.PLANES_VERTEX, fragment_shader=fragment)
-                _set(prog, "u_color", 2)
-                vaos.append(self.ctx.vertex_array(prog, []))
-            self._planes_vao = (vaos[0], vaos[1])
-        return self._planes_vao
-
     def _convert_planes(self, targets: _Targets) -> None:
-        """Draw the colour target's Y, Cb, Cr planes into their targets."""
-        luma, chroma = self._planes_vaos()
-        self.ctx.disable(moderngl.DEPTH_TEST)
+        """Compute the colour target's Y, Cb, Cr planes into their targets (one dispatch)."""
+        if self._planes_program is None:
+            self._planes_program = self.ctx.compute_shader(shaders.PLANES_COMPUTE)
+            _set(self._planes_program, "u_color", 2)
         targets.color.use(2)
-        w, h = targets.color.size
-        for fbo, vao, size in ((targets.luma_fbo, luma, (w, h)), (targets.chroma_fbo, chroma, (w // 2, h // 2))):
-            assert fbo is not None
-            fbo.use()
-            fbo.viewport = (0, 0, *size)
-            vao.render(moderngl.TRIANGLES, vertices=3)
+        for unit, texture in enumerate(targets.planes, start=1):
+            texture.bind_to_image(unit, read=False, write=True)
+        w, h = targets.planes[1].size
+        gx, gy = shaders.PLANES_GROUP
+        self._planes_program.run((w + gx - 1) // gx, (h + gy - 1) // gy, 1)
+        # The planes are read back through framebuffers: their image stores must be visible to glReadPixels.
+        self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT | moderngl.PIXEL_BUFFER_BARRIER_BIT)
 
     def _draw(self, view: CameraView, light: Lighting, uniforms: dict[str, object], slot: int = 0) -> _Targets:
         k = view.intrinsic()

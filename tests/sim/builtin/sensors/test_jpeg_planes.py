@@ -68,3 +68,25 @@ def test_gpu_mode_converts_on_hardware_only():
         assert front.rgb is None and front.jpeg_planes is not None
     else:  # llvmpipe: the conversion pass costs more CPU than libjpeg's own
         assert front.rgb is not None and front.jpeg_planes is None
+
+
+def test_one_batch_on_a_gpu_renders_what_two_batches_render():
+    """On a hardware GPU the top-down camera joins the six cameras' batch; the pixels must not change."""
+    suite = SensorSuite.from_scene(build_static_scene(crossroads_layout(), seed=3), SMALL, seed=11)
+    try:
+        ego = actor_state(1, "vehicle.lincoln.mkz_2020", -30.0, 5.25, 0.0, role_name="hero")
+        snapshot = snapshot_of([ego, actor_state(2, "vehicle.tesla.model3", -15.0, 5.25, 0.0)], NOON)
+        if suite.renderer.hardware:
+            pytest.skip("needs the software renderer's two-batch path to compare with")
+        two = suite.capture(snapshot, 1).cameras
+        suite.renderer.hardware = True
+        one = suite.capture(snapshot, 1).cameras
+    finally:
+        suite.close()
+    assert list(one) == list(two) and "top_down" in one
+    for name in one:
+        for field in ("rgb", "depth", "semantic", "instance"):
+            a, b = getattr(one[name], field), getattr(two[name], field)
+            assert (a is None) == (b is None), (name, field)
+            if a is not None:
+                np.testing.assert_array_equal(a, b, err_msg=f"{name} {field}")

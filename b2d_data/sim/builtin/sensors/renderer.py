@@ -206,13 +206,18 @@ DRAW_ORDER: tuple[int, ...] = (
 )
 
 
+_NO_RUNS = np.zeros((0, 2), np.int64)
+_UNSET = object()
+
+
 @dataclass
 class _Tiles:
     """Triangles of one material sorted by ground tile: vertex ranges and boxes for frustum culling."""
 
     first: np.ndarray  # (n,) first vertex
     count: np.ndarray  # (n,) vertex count
-    corners: np.ndarray  # (n, 8, 4) homogeneous AABB corners
+    lo: np.ndarray  # (n, 3) bounding box minimum
+    hi: np.ndarray  # (n, 3) bounding box maximum
 
 
 def _batch_mesh(mesh: TriangleMesh, tile: float | None) -> tuple[TriangleMesh, dict[int, _Tiles]]:
@@ -238,38 +243,53 @@ def _batch_mesh(mesh: TriangleMesh, tile: float | None) -> tuple[TriangleMesh, d
     ends = np.r_[starts[1:], len(key)]
     lo = np.minimum.reduceat(mesh.vertices.min(axis=1), starts, axis=0)
     hi = np.maximum.reduceat(mesh.vertices.max(axis=1), starts, axis=0)
-    signs = np.array([(sx, sy, sz) for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)], np.float64)
-    corners = lo[:, None, :] + signs[None] * (hi - lo)[:, None, :]
-    corners = np.concatenate([corners, np.ones(corners.shape[:2] + (1,))], axis=2)
     batches: dict[int, _Tiles] = {}
     for m in np.unique(mat[starts]).tolist():
         sel = mat[starts] == m
-        batches[m] = _Tiles(starts[sel] * 3, (ends[sel] - starts[sel]) * 3, corners[sel])
+        batches[m] = _Tiles(starts[sel] * 3, (ends[sel] - starts[sel]) * 3, lo[sel], hi[sel])
     return mesh, batches
 
 
-def _visible_runs(tiles: _Tiles, viewproj: np.ndarray, eye: np.ndarray) -> list[tuple[int, int]]:
-    """(first, count) vertex runs of the tiles not entirely outside one clip plane, nearest tile first.
+class _Culling:
+    """Every static tile of every material in one set of arrays, so that a view is culled in one numpy pass."""
 
-    Front-to-back order lets the early depth test skip the shading of hidden pixels.
-    """
-    if len(tiles.first) == 0:
-        return []
-    clip = tiles.corners @ viewproj.T  # (n, 8, 4)
-    x, y, z, w = clip[..., 0], clip[..., 1], clip[..., 2], clip[..., 3]
-    out = (
-        (x < -w).all(1) | (x > w).all(1) | (y < -w).all(1) | (y > w).all(1) | (z < -w).all(1) | (z > w).all(1)
-    )
-    visible = np.flatnonzero(~out)
-    centres = tiles.corners[visible, :, :3].mean(axis=1)
-    visible = visible[np.argsort(np.linalg.norm(centres - eye, axis=1), kind="stable")]
-    runs: list[tuple[int, int]] = []
-    for first, count in zip(tiles.first[visible].tolist(), tiles.count[visible].tolist()):
-        if runs and runs[-1][0] + runs[-1][1] == first:
-            runs[-1] = (runs[-1][0], runs[-1][1] + count)
-        else:
-            runs.append((first, count))
-    return runs
+    def __init__(self, batches: dict[int, _Tiles]) -> None:
+        self.materials = list(batches)
+        tiles = [batches[m] for m in self.materials]
+        self.first = np.concatenate([t.first for t in tiles]) if tiles else np.zeros(0, np.int64)
+        self.count = np.concatenate([t.count for t in tiles]) if tiles else np.zeros(0, np.int64)
+        lo = np.concatenate([t.lo for t in tiles]) if tiles else np.zeros((0, 3))
+        hi = np.concatenate([t.hi for t in tiles]) if tiles else np.zeros((0, 3))
+        # Centres as the mean of the eight corners (not (lo + hi) / 2): the same rounding as the per-material culling
+        # this replaced, so tiles at equal distances keep their draw order and every pixel stays as it was.
+        signs = np.array([(sx, sy, sz) for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)], np.float64)
+        self.centres = (lo[:, None, :] + signs[None] * (hi - lo)[:, None, :]).mean(axis=1)
+        self.half = (hi - lo) / 2.0
+        self.material = np.repeat(np.arange(len(tiles)), [len(t.first) for t in tiles])
+
+    def runs(self, viewproj: np.ndarray, eye: np.ndarray) -> dict[int, np.ndarray]:
+        """Per material, (first, count) vertex runs of the tiles not entirely outside one clip plane, nearest first.
+
+        Front-to-back order lets the early depth test skip the shading of hidden pixels; tiles that follow each other
+        in the buffer after sorting merge into one run.
+        """
+        if len(self.first) == 0:
+            return {}
+        # A box lies outside a clip plane (x < −w, x > w, …) when its corner furthest along the plane's normal does,
+        # i.e. when all eight corners do: two small products for all tiles.
+        rows, w = viewproj[:3], viewproj[3]
+        planes = np.concatenate([w + rows, w - rows])  # (6, 4): w ± x, w ± y, w ± z ≥ 0 inside
+        reach = self.centres @ planes[:, :3].T + planes[:, 3] + self.half @ np.abs(planes[:, :3]).T
+        visible = np.flatnonzero((reach >= 0.0).all(axis=1))
+        if len(visible) == 0:
+            return {m: _NO_RUNS for m in self.materials}
+        distance = np.linalg.norm(self.centres[visible] - eye, axis=1)
+        visible = visible[np.lexsort((distance, self.material[visible]))]  # by material, then distance (stable)
+        first, count, material = self.first[visible], self.count[visible], self.material[visible]
+        starts = np.flatnonzero(np.r_[True, (first[1:] != first[:-1] + count[:-1]) | (material[1:] != material[:-1])])
+        runs = np.stack([first[starts], np.add.reduceat(count, starts)], axis=1)
+        bounds = np.searchsorted(material[starts], np.arange(len(self.materials) + 1))
+        return {m: runs[bounds[i] : bounds[i + 1]] for i, m in enumerate(self.materials)}
 
 
 def sky_grid(columns: int = 48, rows: int = 27) -> np.ndarray:
@@ -376,7 +396,9 @@ class Renderer:
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
         self._static_vbo: moderngl.Buffer | None = None
-        self._static_batches: dict[int, _Tiles] = {}
+        self._static_culling = _Culling({})
+        # Uniform values each program was last given: weather and lighting stay the same for every view of a frame.
+        self._uniform_values: dict[int, dict[str, object]] = {}
         self._dyn_vbo = self.ctx.buffer(reserve=1 << 20, dynamic=True)
         self._dyn_batches: dict[int, _Tiles] = {}
         self._targets: dict[tuple[int, int, bool, int], _Targets] = {}
@@ -430,7 +452,8 @@ class Renderer:
     @_current
     def set_static(self, mesh: TriangleMesh) -> None:
         """Upload the static scene, batched by material and ground tile (for culling)."""
-        mesh, self._static_batches = _batch_mesh(mesh, self.tile_size)
+        mesh, batches = _batch_mesh(mesh, self.tile_size)
+        self._static_culling = _Culling(batches)
         data = pack_vertices(mesh)
         self._drop_vaos("static")
         if self._static_vbo is not None:
@@ -465,6 +488,15 @@ class Renderer:
             self._dyn_vbo.write(data.tobytes())
 
     # ------------------------------------------------------------------------------------------ drawing
+    def _set_uniforms(self, program: moderngl.Program, values: dict[str, object]) -> None:
+        """Set the uniforms whose values changed since this program last got them (matrices are always set)."""
+        last = self._uniform_values.setdefault(id(program), {})
+        for name, value in values.items():
+            if not isinstance(value, np.ndarray) and last.get(name, _UNSET) == value:
+                continue
+            _set(program, name, value)
+            last[name] = value
+
     def _weather_uniforms(self, light: Lighting, head: tuple[np.ndarray, np.ndarray] | None) -> dict[str, object]:
         return {
             "u_sky_zenith": tuple(map(float, light.sky_zenith)),
@@ -487,9 +519,7 @@ class Renderer:
             "u_sky_tag": shaders.SKY_TAG,
         }
 
-    def _indirect_commands(
-        self, runs: dict[int, list[tuple[int, int]]], slot: int
-    ) -> tuple[moderngl.Buffer, dict[int, int]]:
+    def _indirect_commands(self, runs: dict[int, np.ndarray], slot: int) -> tuple[moderngl.Buffer, dict[int, int]]:
         """Upload the draw commands of every material's runs for view ``slot``; returns the buffer and offsets.
 
         moderngl reads non-indexed indirect commands with a stride of five integers (count, instances, first,
@@ -501,8 +531,8 @@ class Renderer:
         row = 0
         for material, material_runs in runs.items():
             offsets[material] = row
-            if material_runs:
-                block = np.asarray(material_runs, np.uint32)
+            if len(material_runs):
+                block = material_runs
                 commands[row : row + len(block), 0] = block[:, 1]
                 commands[row : row + len(block), 2] = block[:, 0]
                 row += len(block)
@@ -563,23 +593,20 @@ class Renderer:
             "u_cam_fwd": tuple(map(float, pose[:3, 0])),
         }
         camera_uniforms = {**uniforms, **per_camera}
-        static_runs = {
-            material: _visible_runs(tiles, viewproj, pose[:3, 3]) for material, tiles in self._static_batches.items()
-        }
+        static_runs = self._static_culling.runs(viewproj, pose[:3, 3])
         indirect = self._indirect_commands(static_runs, slot) if self.multi_draw else None
         for material in DRAW_ORDER:
             dyn = self._dyn_batches.get(material)
-            runs = static_runs.get(material, [])
-            if dyn is None and not runs:
+            runs = static_runs.get(material, _NO_RUNS)
+            if dyn is None and not len(runs):
                 continue
             key = ("scene", int(material), night, wet)
             prog = self._program(key)
-            for name, value in camera_uniforms.items():
-                _set(prog, name, value)
+            self._set_uniforms(prog, camera_uniforms)
             if dyn is not None:
                 vao = self._vao(key, "dynamic")
                 vao.render(moderngl.TRIANGLES, vertices=int(dyn.count.sum()), first=int(dyn.first[0]))
-            if runs:
+            if len(runs):
                 vao = self._vao(key, "static")
                 if indirect is not None:
                     # One multi-draw per material instead of one call per visible tile run: the same triangles in
@@ -587,13 +614,12 @@ class Renderer:
                     buffer, offsets = indirect
                     vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(runs), first=offsets[material])
                 else:
-                    for first, count in runs:
+                    for first, count in runs.tolist():
                         vao.render(moderngl.TRIANGLES, vertices=count, first=first)
         self.ctx.depth_func = "<="
         sky_key = ("sky", light.cloudiness > 0.01)
         sky = self._program(sky_key)
-        for name, value in uniforms.items():
-            _set(sky, name, value)
+        self._set_uniforms(sky, uniforms)
         _set(sky, "u_cam_rot", pose[:3, :3] @ UE_TO_CV[:3, :3].T)  # OpenCV axes → world
         _set(sky, "u_intrinsic", (float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])))
         _set(sky, "u_viewport", (float(view.width), float(view.height)))

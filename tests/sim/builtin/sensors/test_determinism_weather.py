@@ -95,3 +95,18 @@ def test_wet_road_is_darker(street):
     # Weather changes the colours only: labels and depth are identical.
     np.testing.assert_array_equal(dry.semantic, wet.semantic)
     np.testing.assert_array_equal(dry.depth, wet.depth)
+
+
+def test_a_renderer_that_changes_weather_draws_what_a_fresh_one_draws(street):
+    """Uniforms are only re-sent when they change: going back and forth between weathers must not leave stale ones."""
+    foggy_night = NOON.replace(sun_altitude_angle=-60.0, fog_density=40.0, wetness=80.0)
+    seen = [street.capture(snapshot_of(_actors(), w), 1).cameras for w in (NOON, foggy_night, NOON, foggy_night)]
+    for weather, cameras in ((NOON, seen[2]), (foggy_night, seen[3])):
+        fresh = SensorSuite.from_scene(build_static_scene(crossroads_layout(), seed=3), CONFIG, seed=11)
+        try:
+            want = fresh.capture(snapshot_of(_actors(), weather), 1).cameras
+        finally:
+            fresh.close()
+        for name in want:
+            np.testing.assert_array_equal(cameras[name].rgb, want[name].rgb, err_msg=name)
+    assert np.abs(seen[0]["front"].rgb.astype(int) - seen[1]["front"].rgb.astype(int)).mean() > 5

@@ -50,6 +50,7 @@ from b2d_data.collection import job as job_module
 from b2d_data.collection.layout import (
     auto_layout,
     count_gpus,
+    raster_threads,
     single_thread_environment,
     single_thread_worker,
 )
@@ -251,10 +252,10 @@ def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTime
     return timer, state["frames"], result
 
 
-def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int, reports: Any, pin: bool) -> None:
+def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int, reports: Any, pin: bool, workers: int) -> None:
     from b2d_data.collection.backends import _worker_init
 
-    _worker_init(log_level, owner, reports)  # what b2d-collect's route processes do
+    _worker_init(log_level, owner, reports, raster_threads(workers))  # what b2d-collect's route processes do
     _cap_ticks(max_ticks)
     if pin:  # experiment: one core per route process, so that every thread pool sizes itself to one core
         cores = sorted(os.sched_getaffinity(0))
@@ -280,7 +281,7 @@ def pipeline(
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
         workers, mp_context=context, initializer=_pipeline_worker_init,
-        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, reports, pin),
+        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, reports, pin, workers),
     ) as pool:  # fmt: skip
         futures = [pool.submit(job_module.run_route_job, t.route, t.town, config.out, config, t.seed) for t in tasks]
         wait_futures(futures)

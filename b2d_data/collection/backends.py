@@ -28,7 +28,7 @@ from b2d_data.collection.job import (
     run_route_job,
     shutdown_encoders,
 )
-from b2d_data.collection.layout import single_thread_environment, single_thread_worker
+from b2d_data.collection.layout import raster_threads, single_thread_environment, single_thread_worker
 from b2d_data.collection.plan import CollectError, RouteTask
 from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
@@ -118,12 +118,12 @@ def _leave(signum: int, frame: object) -> None:
     raise SystemExit(0)
 
 
-def _worker_init(log_level: int, driver_pid: int, reports: Any) -> None:
+def _worker_init(log_level: int, driver_pid: int, reports: Any, rasteriser_threads: int = 0) -> None:
     """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), leave Ctrl-C to the
     driver and stop cleanly on its SIGTERM, quiet logging, frame reports into the driver's queue."""
     exit_with_parent(driver_pid)
     ignore_interrupts()
-    single_thread_worker()
+    single_thread_worker(rasteriser_threads)
     # An exit through the interpreter (not the default SIGTERM death) releases the worker's semaphores and shared
     # memory; otherwise the resource tracker reports them as leaked.
     signal.signal(signal.SIGTERM, _leave)
@@ -154,7 +154,7 @@ class ProcessPoolBackend:
             self.capacity,
             mp_context=self._context,
             initializer=_worker_init,
-            initargs=(logging.getLogger().getEffectiveLevel(), os.getpid(), self._reports),
+            initargs=(logging.getLogger().getEffectiveLevel(), os.getpid(), self._reports, raster_threads(self.capacity)),
         )
 
     def _drain_reports(self) -> None:

@@ -52,7 +52,7 @@ class FrameBoard:
 def route_job_reporting_to(board: Any, *args: Any) -> JobResult:
     """:func:`run_route_job` in a Ray task, its frame reports sent (fire and forget) to the ``board`` actor."""
     set_frame_sink(lambda report: board.report.remote(report))
-    single_thread_worker()  # a task holds one CPU of its node (Ray caps the BLAS pools the same way)
+    single_thread_worker(1)  # a task holds one CPU of its node (Ray caps the BLAS pools the same way)
     try:
         return run_route_job(*args)
     finally:

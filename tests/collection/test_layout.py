@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-from b2d_data.collection.layout import Layout, auto_layout
+import os
+
+import pytest
+
+from b2d_data.collection.layout import Layout, auto_layout, raster_threads, single_thread_worker
 
 
 def test_gpu_machine_runs_a_quarter_more_route_processes_than_cores() -> None:
@@ -17,3 +21,23 @@ def test_cpu_machine_runs_one_route_per_core_up_to_four() -> None:
     assert auto_layout(cores=2, gpus=0) == Layout(workers=2, encode_workers=0)
     assert auto_layout(cores=32, gpus=0) == Layout(workers=4, encode_workers=0)
     assert auto_layout(cores=1, gpus=0) == Layout(workers=1, encode_workers=0)
+
+
+def test_each_route_process_rasterises_on_its_share_of_the_cores() -> None:
+    assert raster_threads(2, cores=2) == 1  # two routes on the 2-core machine: one llvmpipe thread each
+    assert raster_threads(1, cores=2) == 2  # one route keeps both
+    assert raster_threads(4, cores=16) == 4
+    assert raster_threads(20, cores=16) == 1  # more processes than cores: still one
+
+
+def test_the_worker_sets_llvmpipe_threads_unless_the_user_did(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("LP_NUM_THREADS", "0")  # records the variable's own state, restored after the test
+    monkeypatch.delenv("LP_NUM_THREADS")
+    single_thread_worker(3)
+    assert os.environ["LP_NUM_THREADS"] == "3"
+    monkeypatch.setenv("LP_NUM_THREADS", "7")
+    single_thread_worker(1)
+    assert os.environ["LP_NUM_THREADS"] == "7"
+    monkeypatch.delenv("LP_NUM_THREADS")
+    single_thread_worker()  # no count: llvmpipe's own default stays
+    assert "LP_NUM_THREADS" not in os.environ

@@ -74,7 +74,7 @@ class CaptureTimings:
     """
 
     actors: float = 0.0
-    cameras: float = 0.0  # the six cameras and the top-down camera (one batch)
+    cameras: float = 0.0  # the six cameras and the top-down camera
     lidar: float = 0.0
     radar: float = 0.0
     imu_gnss: float = 0.0

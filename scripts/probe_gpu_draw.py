@@ -41,8 +41,10 @@ void main() {
 """
 SCRATCH_SLOT = 23
 GPU_MS: defaultdict[str, list[float]] = defaultdict(list)
+COUNTS: defaultdict[str, list[float]] = defaultdict(list)
 _draw = R.Renderer._draw
 _planes = R.Renderer._convert_planes
+_unpack = R.Renderer._unpack
 _fragment = S.scene_fragment
 _trivial_programs: dict[int, tuple[dict, dict]] = {}
 
@@ -64,7 +66,7 @@ def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: d
     timed(renderer, "same view again", _draw, view, *args)
     programs, vaos = renderer._programs, renderer._vaos
     renderer._programs, renderer._vaos = _trivial_programs.setdefault(id(renderer), ({}, {}))
-    S.scene_fragment = lambda m, n, w, d8=False: S._header(m, n, w) + S._fragment(TRIVIAL_FRAGMENT, d8)
+    S.scene_fragment = lambda m, n, w, d8=False, packed=False: S._header(m, n, w) + S._fragment(TRIVIAL_FRAGMENT, d8, packed)
     try:
         timed(renderer, "trivial fragment shader", _draw, view, *args)
     finally:
@@ -96,6 +98,24 @@ def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: d
         timed(renderer, "no static scene (actors + sky)", _draw, view, *args)
     finally:
         renderer._static_culling = culling
+    renderer.ctx.enable(R.moderngl.RASTERIZER_DISCARD)
+    try:
+        timed(renderer, "rasterizer discard (vertices only)", _draw, view, *args)
+    finally:
+        renderer.ctx.disable(R.moderngl.RASTERIZER_DISCARD)
+    targets = renderer._targets_for(view.width, view.height, view.labels, SCRATCH_SLOT)
+    if targets.packed is None:  # four targets: how much of the draw the three label targets cost
+        full = targets.all_color
+        off = (False, False, False, False)
+        targets.all_color = ((True, True, True, True), off, off, off)
+        try:
+            timed(renderer, "colour target only", _draw, view, *args)
+        finally:
+            targets.all_color = full
+    vp = R.projection_from_intrinsic(view.intrinsic(), view.width, view.height, renderer.near, renderer.far)
+    runs = culling.runs(vp @ view.world_to_cv(), eye)
+    COUNTS["static vertices per view (thousands)"].append(sum(int(r[:, 1].sum()) for r in runs.values()) / 1e3)
+    COUNTS["static vertices in the scene (thousands)"].append(int(culling.count.sum()) / 1e3)
 
 
 def draw(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: dict, slot: int = 0) -> Any:
@@ -110,15 +130,22 @@ def planes(renderer: R.Renderer, targets: Any) -> None:
     timed(renderer, "JPEG planes dispatch", _planes, targets)
 
 
+def unpack(renderer: R.Renderer, targets: Any) -> None:
+    timed(renderer, "unpack dispatch", _unpack, targets)
+
+
 @atexit.register
 def report() -> None:
     print("\nGPU ms per call (timer query between glFinish calls):")
     for name, values in sorted(GPU_MS.items()):
         print(f"  {name:<34} {np.median(values):7.3f} median of {len(values)}")
+    for name, values in sorted(COUNTS.items()):
+        print(f"  {name:<34} {np.median(values):9.1f} median of {len(values)}")
 
 
 if __name__ == "__main__":
     R.Renderer._draw = draw  # type: ignore[method-assign]
     R.Renderer._convert_planes = planes  # type: ignore[method-assign]
+    R.Renderer._unpack = unpack  # type: ignore[method-assign]
     sys.argv = ["bench_collect.py", *sys.argv[1:]]
     runpy.run_path(str(Path(__file__).with_name("bench_collect.py")), run_name="__main__")

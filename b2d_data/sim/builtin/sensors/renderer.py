@@ -199,6 +199,18 @@ def pack_vertices(mesh: TriangleMesh) -> np.ndarray:
     return out
 
 
+def shared_vertices(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A packed vertex array as its distinct vertices (in order of first use) and a uint32 index per vertex."""
+    if len(data) == 0:
+        return data, np.zeros(0, np.uint32)
+    records = np.ascontiguousarray(data).view(np.dtype((np.void, data.dtype.itemsize)))
+    _, first, inverse = np.unique(records, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty(len(order), np.uint32)
+    rank[order] = np.arange(len(order), dtype=np.uint32)
+    return data[first[order]], rank[inverse.reshape(-1)]
+
+
 #: Materials in drawing order: small near things first, the terrain last, so early depth tests skip hidden work.
 DRAW_ORDER: tuple[int, ...] = (
     Material.EMISSIVE, Material.PAINT, Material.GLASS, Material.ROAD, Material.MATTE, Material.FACADE,
@@ -318,8 +330,11 @@ class _Targets:
     """Colour (and, for labelled cameras, depth, tag and id) targets plus a depth buffer of one resolution."""
 
     def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool, depth8: bool,
-                 planes: bool = False) -> None:  # fmt: skip
+                 planes: bool = False, packed: bool = False) -> None:  # fmt: skip
         self.color = ctx.texture((width, height), 4, dtype="f1")
+        # With ``packed`` the scene is drawn into one RG32UI target (shaders.UNPACK_COMPUTE), whose pixels a compute
+        # pass spreads over the targets below; they are then only read back, through ``read_fbo``.
+        self.packed = ctx.texture((width, height), 2, dtype="u4") if packed else None
         # The JPEG's planes (``planes``): full-size Y, half-size Cb and Cr, each its own one-byte target.
         self.planes: tuple[moderngl.Texture, ...] = ()
         self.luma_fbo = self.chroma_fbo = None
@@ -339,16 +354,76 @@ class _Targets:
         self.tags = ctx.texture((width, height), 1, dtype="u1") if labels else None
         self.zbuf = ctx.depth_renderbuffer((width, height))
         attachments = [self.color, self.depth, self.labels, self.tags] if labels else [self.color]
-        self.fbo = ctx.framebuffer(attachments, self.zbuf)
+        if self.packed is not None:
+            self.read_fbo = ctx.framebuffer(attachments)
+            attachments = [self.packed]
+            self.fbo = ctx.framebuffer(attachments, self.zbuf)
+        else:
+            self.fbo = self.read_fbo = ctx.framebuffer(attachments, self.zbuf)
         self.all_color = self.fbo.color_mask
         off = (False, False, False, False)
         self.no_color = (off,) * len(attachments) if len(attachments) > 1 else off
 
     def release(self) -> None:
-        for obj in (self.fbo, self.luma_fbo, self.chroma_fbo, *self.planes, self.color, self.depth, self.labels,
-                    self.tags, self.zbuf):  # fmt: skip
+        fbos = (self.fbo,) if self.read_fbo is self.fbo else (self.fbo, self.read_fbo)
+        for obj in (*fbos, self.luma_fbo, self.chroma_fbo, *self.planes, self.color, self.depth, self.labels,
+                    self.tags, self.packed, self.zbuf):  # fmt: skip
             if obj is not None:
                 obj.release()
+
+
+class _Readback:
+    """The read-backs of one frame: straight into fresh arrays, or all into one pixel-pack buffer and then copied
+    out with a single wait for the GPU.
+
+    With many route processes sharing a GPU, every synchronous glReadPixels waits for the process's context to get
+    the GPU again; a frame of seven cameras made 31 such waits. Through the buffer the reads are queued behind the
+    draws and the frame waits once.
+    """
+
+    #: Offsets of the reads in the buffer are rounded up to this many bytes (aligned float32 views).
+    ALIGN = 64
+    #: moderngl's read types: normalised bytes (colour), integer bytes (the R8UI / RGBA8UI targets), float.
+    ARRAY_TYPE = {"f1": np.uint8, "u1": np.uint8, "f4": np.float32}
+
+    def __init__(self, ctx: moderngl.Context, buffer: moderngl.Buffer | None, use_buffer: bool = True) -> None:
+        self.ctx = ctx
+        self.use_buffer = use_buffer
+        self.buffer = buffer
+        self._reads: list[tuple[moderngl.Framebuffer, int, tuple[int, ...], str, int]] = []
+        self._size = 0
+
+    def add(self, fbo: moderngl.Framebuffer, attachment: int, shape: tuple[int, ...], dtype: str) -> None:
+        """Queue the read of one attachment as an array of ``shape`` (rows, columns[, 4 components]); ``dtype`` is
+        moderngl's name of the read type (``ARRAY_TYPE``)."""
+        self._reads.append((fbo, attachment, shape, dtype, self._size))
+        nbytes = int(np.prod(shape)) * np.dtype(self.ARRAY_TYPE[dtype]).itemsize
+        self._size += -(-nbytes // self.ALIGN) * self.ALIGN
+
+    def finish(self) -> list[np.ndarray]:
+        """The arrays, in the order they were added."""
+        if not self.use_buffer:
+            out = []
+            for fbo, attachment, shape, dtype, _ in self._reads:
+                array = np.empty(shape, self.ARRAY_TYPE[dtype])
+                fbo.read_into(array, viewport=(0, 0, shape[1], shape[0]), components=shape[2] if len(shape) > 2
+                              else 1, attachment=attachment, dtype=dtype)  # fmt: skip
+                out.append(array)
+            return out
+        if self.buffer is None or self.buffer.size < self._size:
+            if self.buffer is not None:
+                self.buffer.release()
+            self.buffer = self.ctx.buffer(reserve=max(self._size, 1), dynamic=True)
+        for fbo, attachment, shape, dtype, offset in self._reads:
+            fbo.read_into(self.buffer, viewport=(0, 0, shape[1], shape[0]), components=shape[2] if len(shape) > 2
+                          else 1, attachment=attachment, dtype=dtype, write_offset=offset)  # fmt: skip
+        host = np.empty(max(self._size, 1), np.uint8)  # this frame's own memory: its arrays are views of it
+        self.buffer.read_into(host, size=self._size)
+        out = []
+        for _, _, shape, dtype, offset in self._reads:
+            array_type = np.dtype(self.ARRAY_TYPE[dtype])
+            out.append(host[offset : offset + int(np.prod(shape)) * array_type.itemsize].view(array_type).reshape(shape))
+        return out
 
 
 _F = TypeVar("_F", bound=Callable)
@@ -370,7 +445,7 @@ class Renderer:
 
     def __init__(
         self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False,
-        jpeg_planes: JpegPlanes = "off",
+        jpeg_planes: JpegPlanes = "off", packed: bool | None = None, pixel_buffer: bool | None = None,
     ) -> None:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
@@ -392,10 +467,24 @@ class Renderer:
                 raise RuntimeError(f"jpeg_planes='on' needs OpenGL 4.3 compute shaders; {self.gl_renderer} "
                                    f"offers OpenGL {self.ctx.version_code}")  # fmt: skip
             self.jpeg_planes = False
+        # One packed target per camera (``shaders.UNPACK_COMPUTE``): by default on a hardware GPU with compute
+        # shaders, where the four colour writes per fragment cost a third of the draw; uint8 depth only.
+        if packed is None:
+            packed = self.hardware and self.depth8 and self.ctx.version_code >= 430
+        elif packed and (not self.depth8 or self.ctx.version_code < 430):
+            raise RuntimeError(f"packed targets need depth8 and OpenGL 4.3 compute shaders; {self.gl_renderer} "
+                               f"offers OpenGL {self.ctx.version_code}, depth8={self.depth8}")  # fmt: skip
+        self.packed = packed
+        # Read-backs through one pixel-pack buffer per frame (``_Readback``): by default on a hardware GPU; on
+        # llvmpipe the buffer is one more copy in host memory.
+        self.pixel_buffer = self.hardware if pixel_buffer is None else pixel_buffer
+        self._pack_buffer: moderngl.Buffer | None = None
+        self._unpack_programs: dict[bool, moderngl.ComputeShader] = {}
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
         self._static_vbo: moderngl.Buffer | None = None
+        self._static_ibo: moderngl.Buffer | None = None
         self._static_culling = _Culling({})
         # Uniform values each program was last given: weather and lighting stay the same for every view of a frame.
         self._uniform_values: dict[int, dict[str, object]] = {}
@@ -418,12 +507,13 @@ class Renderer:
         prog = self._programs.get(key)
         if prog is None:
             if key[0] == "sky":
-                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(key[1]), fragment_shader=shaders.sky_fragment(self.depth8))
+                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(key[1]),
+                                        fragment_shader=shaders.sky_fragment(self.depth8, self.packed))  # fmt: skip
             else:
                 _, material, night, wet = key
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet),
-                    fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8),
+                    fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed),
                 )
             _set(prog, "u_noise", 1)
             _set(prog, "u_lightmap", 0)
@@ -438,9 +528,11 @@ class Renderer:
             prog = self._program(program_key)
             if which == "sky":
                 vao = self.ctx.vertex_array(prog, [(self._sky_vbo, "2f", "in_xy")])
+            elif which == "static":
+                vao = self.ctx.vertex_array(prog, [(self._static_vbo, *_vertex_layout(prog))],
+                                            index_buffer=self._static_ibo, index_element_size=4)  # fmt: skip
             else:
-                vbo = self._static_vbo if which == "static" else self._dyn_vbo
-                vao = self.ctx.vertex_array(prog, [(vbo, *_vertex_layout(prog))])
+                vao = self.ctx.vertex_array(prog, [(self._dyn_vbo, *_vertex_layout(prog))])
             self._vaos[key] = vao
         return vao
 
@@ -454,11 +546,16 @@ class Renderer:
         """Upload the static scene, batched by material and ground tile (for culling)."""
         mesh, batches = _batch_mesh(mesh, self.tile_size)
         self._static_culling = _Culling(batches)
-        data = pack_vertices(mesh)
+        # Drawn by index: the same triangles in the same order (the tiles' vertex ranges become index ranges), but a
+        # vertex shared by neighbouring triangles is shaded once. About half of a town's vertices are shared, and an
+        # H100 runs vertex shaders on the few SMs that rasterise.
+        data, indices = shared_vertices(pack_vertices(mesh))
         self._drop_vaos("static")
-        if self._static_vbo is not None:
-            self._static_vbo.release()
+        for buffer in (self._static_vbo, self._static_ibo):
+            if buffer is not None:
+                buffer.release()
         self._static_vbo = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * VERTEX_DTYPE.itemsize)
+        self._static_ibo = self.ctx.buffer(indices.tobytes() if len(indices) else b"\0" * 4)
         self.static_triangles = len(mesh)
 
     @_current
@@ -522,8 +619,8 @@ class Renderer:
     def _indirect_commands(self, runs: dict[int, np.ndarray], slot: int) -> tuple[moderngl.Buffer, dict[int, int]]:
         """Upload the draw commands of every material's runs for view ``slot``; returns the buffer and offsets.
 
-        moderngl reads non-indexed indirect commands with a stride of five integers (count, instances, first,
-        base instance, unused). Each view of a frame has its own buffer, so no upload waits for an earlier draw.
+        Each command is five integers (count, instances, first index, base vertex, base instance), the layout of
+        glMultiDrawElementsIndirect. Each view of a frame has its own buffer, so no upload waits for an earlier draw.
         """
         total = sum(len(r) for r in runs.values())
         commands = np.zeros((max(total, 1), 5), np.uint32)
@@ -551,8 +648,26 @@ class Renderer:
         key = (width, height, labels, slot)
         if key not in self._targets:
             planes = self.jpeg_planes and width % 2 == 0 and height % 2 == 0
-            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8, planes)
+            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8, planes, self.packed)
         return self._targets[key]
+
+    def _unpack(self, targets: _Targets) -> None:
+        """Spread the packed target over the colour (and depth, label and tag) targets (one dispatch)."""
+        labels = targets.labels is not None
+        program = self._unpack_programs.get(labels)
+        if program is None:
+            program = self._unpack_programs[labels] = self.ctx.compute_shader(shaders.unpack_compute(labels))
+        assert targets.packed is not None
+        targets.packed.bind_to_image(0, read=True, write=False)
+        outputs = (targets.color, targets.depth, targets.labels, targets.tags) if labels else (targets.color,)
+        for unit, texture in enumerate(outputs, start=1):
+            texture.bind_to_image(unit, read=False, write=True)
+        w, h = targets.packed.size
+        gx, gy = shaders.UNPACK_GROUP
+        program.run((w + gx - 1) // gx, (h + gy - 1) // gy, 1)
+        # Read next by the planes pass (texel fetches) and by glReadPixels through the read framebuffer.
+        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.FRAMEBUFFER_BARRIER_BIT
+                                | moderngl.PIXEL_BUFFER_BARRIER_BIT)  # fmt: skip
 
     def _convert_planes(self, targets: _Targets) -> None:
         """Compute the colour target's Y, Cb, Cr planes into their targets (one dispatch)."""
@@ -642,43 +757,42 @@ class Renderer:
         # on one camera while this thread prepares the next, and read-backs do not stall between draws.
         drawn = [self._draw(view, lighting, uniforms, slot) for slot, view in enumerate(views)]
         for targets in drawn:
+            if targets.packed is not None:
+                self._unpack(targets)
             if targets.planes:
                 self._convert_planes(targets)
-        frames = []
+        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer)
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
+            if targets.planes:
+                assert targets.luma_fbo is not None and targets.chroma_fbo is not None
+                # Read through framebuffers as the other one-byte targets are (the driver's fast path).
+                reads.add(targets.luma_fbo, 0, (h, w), "u1")
+                reads.add(targets.chroma_fbo, 0, (h // 2, w // 2), "u1")
+                reads.add(targets.chroma_fbo, 1, (h // 2, w // 2), "u1")
+            else:
+                # Reading RGBA is about twice as fast as letting GL convert to RGB; the JPEG encoders drop the alpha.
+                reads.add(targets.read_fbo, 0, (h, w, 4), "f1")
+            if view.labels:
+                reads.add(targets.read_fbo, 1, (h, w), "u1" if self.depth8 else "f4")
+                reads.add(targets.read_fbo, 2, (h, w, 4), "u1")
+                # The semantic PNG filters a contiguous plane ~9× faster than a strided view of the labels.
+                reads.add(targets.read_fbo, 3, (h, w), "u1")
+        arrays = iter(reads.finish())
+        self._pack_buffer = reads.buffer
+        frames = []
+        for view, targets in zip(views, drawn):
             rgb: np.ndarray | None = None
             planes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
             if targets.planes:
-                planes = (np.empty((h, w), np.uint8), np.empty((h // 2, w // 2), np.uint8),
-                          np.empty((h // 2, w // 2), np.uint8))  # fmt: skip
-                assert targets.luma_fbo is not None and targets.chroma_fbo is not None
-                # Read through framebuffers as the other one-byte targets are (the driver's fast path).
-                targets.luma_fbo.read_into(planes[0], viewport=(0, 0, w, h), components=1, dtype="u1")
-                for k in (1, 2):
-                    targets.chroma_fbo.read_into(planes[k], viewport=(0, 0, w // 2, h // 2), components=1,
-                                                 attachment=k - 1, dtype="u1")  # fmt: skip
+                planes = (next(arrays), next(arrays), next(arrays))
             else:
-                # Reading RGBA is about twice as fast as letting GL convert to RGB. RGB is a view of a fresh RGBA
-                # array (each frame owns its pixels): the JPEG encoders drop the alpha in their own conversion.
-                rgba = np.empty((h, w, 4), np.uint8)
-                targets.fbo.read_into(rgba, components=4, attachment=0)
-                rgb = rgba[..., :3]
+                rgb = next(arrays)[..., :3]  # a view of this frame's own RGBA pixels
             if not view.labels:
                 frames.append(CameraFrame(rgb=rgb, jpeg_planes=planes))
                 continue
-            if self.depth8:
-                depth = np.empty((h, w), np.uint8)
-                targets.fbo.read_into(depth, components=1, attachment=1, dtype="u1")
-            else:
-                depth = np.empty((h, w), np.float32)
-                targets.fbo.read_into(depth, components=1, attachment=1, dtype="f4")
-            labels = np.empty((h, w, 4), np.uint8)
-            targets.fbo.read_into(labels, components=4, attachment=2, dtype="u1")
+            depth, labels, semantic = next(arrays), next(arrays), next(arrays)
             _, instance = label_views(labels)
-            # The semantic PNG filters a contiguous plane ~9× faster than a strided view of the labels.
-            semantic = np.empty((h, w), np.uint8)
-            targets.fbo.read_into(semantic, components=1, attachment=3, dtype="u1")
             frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance, labels=labels,
                                       jpeg_planes=planes))  # fmt: skip
         return frames
@@ -692,4 +806,7 @@ class Renderer:
             for buffer in self._indirect.values():
                 buffer.release()
             self._indirect.clear()
+            if self._pack_buffer is not None:
+                self._pack_buffer.release()
+                self._pack_buffer = None
         self.ctx.release()

@@ -69,3 +69,23 @@ def test_packed_labels_are_the_semantic_and_instance_planes(street):
     car = frame.instance == 300
     assert car.sum() > 20 and (labels[car][:, 1:3] == (44, 1)).all()
     assert street.capture(snapshot_of([ego, other], NOON), 1).cameras["top_down"].labels is None
+
+
+def test_shared_vertices_keeps_first_use_order():
+    """Two triangles sharing an edge: six vertices, four distinct; indices rebuild the array exactly."""
+    from b2d_data.sim.builtin.sensors.renderer import VERTEX_DTYPE, shared_vertices
+
+    data = np.zeros(6, VERTEX_DTYPE)
+    corners = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]  # a, b, c, b, d, c
+    data["pos"] = corners
+    data["ids"] = (7, 3)
+    unique, indices = shared_vertices(data)
+    # First uses: a → 0, b → 1, c → 2, d → 3 (worked out by hand from the corner list).
+    np.testing.assert_array_equal(indices, [0, 1, 2, 1, 3, 2])
+    assert indices.dtype == np.uint32
+    np.testing.assert_array_equal(unique["pos"], [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)])
+    np.testing.assert_array_equal(unique[indices], data)
+    # A vertex that differs in any attribute (here the instance id) is not shared.
+    data["ids"][3] = (7, 4)
+    unique, indices = shared_vertices(data)
+    np.testing.assert_array_equal(indices, [0, 1, 2, 3, 4, 2])

@@ -43,8 +43,10 @@ def test_depth8_is_opencv_rounding_of_float_depth(suites, noon, yaw):
         assert d.dtype == np.float32 and got[cam].depth.dtype == np.uint8
         expected = cv2.add(d, 0.0, dtype=cv2.CV_8U)  # what cv2.imwrite stored for the float image
         np.testing.assert_array_equal(got[cam].depth, expected, err_msg=cam)
-        # Everything else in the frame is unchanged.
-        np.testing.assert_array_equal(got[cam].rgb, want[cam].rgb)
+        # Everything else in the frame is unchanged (colour within one level where a GPU draws uint8 depth into the
+        # packed target, whose colour the shader rounds: test_gpu_paths).
+        colour_diff = np.abs(got[cam].rgb.astype(int) - want[cam].rgb.astype(int))
+        assert colour_diff.max() <= (1 if byte_suite.renderer.packed else 0), cam
         np.testing.assert_array_equal(got[cam].semantic, want[cam].semantic)
         np.testing.assert_array_equal(got[cam].instance, want[cam].instance)
         # The PNG written from either is the same file.

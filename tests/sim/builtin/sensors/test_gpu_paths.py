@@ -58,9 +58,10 @@ def test_gpu_paths_give_the_same_pixels(monkeypatch, planes, packed, pixel_buffe
                 diff = np.abs(a.astype(int) - b.astype(int))
                 if not packed:  # the same draw, read another way: every byte the same
                     assert diff.max() == 0, (weather, cam)
-                # Packed, colour may differ by one level where the compiler contracted the shading's last multiply-adds
-                # differently in the two programs (seen: 1 of 62208 values on llvmpipe); far below JPEG's codec noise.
-                assert diff.max() <= 1 and np.count_nonzero(diff) <= diff.size // 1000, (weather, cam)
+                # Packed, the shader rounds colour to bytes itself, where an RGBA8 target left the rounding to the
+                # implementation (GL allows either neighbour): one level apart on 1 of 62208 values on llvmpipe,
+                # on 3–5 % of values on an H100 (chroma of small images). Far below JPEG noise at quality 20 (next test).
+                assert diff.max() <= 1 and np.count_nonzero(diff) <= diff.size // 10, (weather, cam)
         # The scene is really there: sky, road and the cars' ids all appear in the front camera.
         front = cameras["front"]
         assert {11, 1, 14} <= set(np.unique(front.semantic).tolist()), weather
@@ -70,3 +71,20 @@ def test_gpu_paths_give_the_same_pixels(monkeypatch, planes, packed, pixel_buffe
 def test_packed_targets_need_uint8_depth():
     with pytest.raises(RuntimeError, match="depth8"):
         Renderer(depth8=False, packed=True)
+
+
+
+def test_packed_colour_is_within_jpeg_noise(monkeypatch):
+    """The JPEGs of the packed and the four-target draw differ by less than either differs from its image."""
+    from b2d_data.codecs.jpeg import encode_jpeg, read_jpeg
+
+    four = _capture(monkeypatch, False, "off")
+    one = _capture(monkeypatch, True, "off")
+    for weather, cameras in four.items():
+        for cam, frame in cameras.items():
+            image = frame.rgb.astype(int)
+            a = read_jpeg(encode_jpeg(frame.rgb)).astype(int)
+            b = read_jpeg(encode_jpeg(one[weather][cam].rgb)).astype(int)
+            codec_noise = np.abs(a - image).mean()
+            assert codec_noise > 0.5, (weather, cam)  # quality 20 is lossy: the bound below is not vacuous
+            assert np.abs(a - b).mean() < 0.5 * codec_noise, (weather, cam)

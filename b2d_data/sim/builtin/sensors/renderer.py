@@ -1,9 +1,11 @@
-"""Camera renderer: one moderngl EGL context, one multi-render-target pass per camera.
+"""Camera renderer: one moderngl EGL context, one pass per camera.
 
 Each camera is drawn once into an RGBA8 colour target, an R32F planar-depth target (R8UI uint8 metres with
-``depth8``), an RGBA8UI target holding tag and instance id as instance-PNG pixels and an R8UI tag target, each read
-back straight into the array a :class:`CameraFrame` holds. With ``jpeg_planes`` a compute shader turns the colour
-into the JPEG's Y, Cb, Cr planes, which are read back instead of the colour. The
+``depth8``), an RGBA8UI target holding tag and instance id as instance-PNG pixels and an R8UI tag target. On a
+hardware GPU (``packed``) the pass writes one RG32UI target instead and a compute pass spreads it over those four; the
+static scene is drawn by index (shared vertices shaded once); and every read-back of a frame goes into one pixel-pack
+buffer that is copied out with a single wait for the GPU (``pixel_buffer``). With ``jpeg_planes`` a compute shader
+turns the colour into the JPEG's Y, Cb, Cr planes, which are read back instead of the colour. The
 projection is built from the camera's K exactly as ``CameraSpec.intrinsic`` gives it (principal point at the image
 centre), with image row 0 at the top, so a world point projected with K and the world→camera matrix lands on the
 pixel where it is drawn and every read-back is already in image order.

@@ -402,14 +402,19 @@ class _Readback:
         nbytes = int(np.prod(shape)) * np.dtype(self.ARRAY_TYPE[dtype]).itemsize
         self._size += -(-nbytes // self.ALIGN) * self.ALIGN
 
+    @staticmethod
+    def _read(fbo: moderngl.Framebuffer, attachment: int, shape: tuple[int, ...], dtype: str,
+              into: np.ndarray | moderngl.Buffer, offset: int = 0) -> None:  # fmt: skip
+        fbo.read_into(into, viewport=(0, 0, shape[1], shape[0]), components=shape[2] if len(shape) > 2 else 1,
+                      attachment=attachment, dtype=dtype, write_offset=offset)  # fmt: skip
+
     def finish(self) -> list[np.ndarray]:
         """The arrays, in the order they were added."""
         if not self.use_buffer:
             out = []
             for fbo, attachment, shape, dtype, _ in self._reads:
                 array = np.empty(shape, self.ARRAY_TYPE[dtype])
-                fbo.read_into(array, viewport=(0, 0, shape[1], shape[0]), components=shape[2] if len(shape) > 2
-                              else 1, attachment=attachment, dtype=dtype)  # fmt: skip
+                self._read(fbo, attachment, shape, dtype, array)
                 out.append(array)
             return out
         if self.buffer is None or self.buffer.size < self._size:
@@ -417,8 +422,7 @@ class _Readback:
                 self.buffer.release()
             self.buffer = self.ctx.buffer(reserve=max(self._size, 1), dynamic=True)
         for fbo, attachment, shape, dtype, offset in self._reads:
-            fbo.read_into(self.buffer, viewport=(0, 0, shape[1], shape[0]), components=shape[2] if len(shape) > 2
-                          else 1, attachment=attachment, dtype=dtype, write_offset=offset)  # fmt: skip
+            self._read(fbo, attachment, shape, dtype, self.buffer, offset)
         host = np.empty(max(self._size, 1), np.uint8)  # this frame's own memory: its arrays are views of it
         self.buffer.read_into(host, size=self._size)
         out = []

@@ -64,7 +64,7 @@ def _egl_context(index: int | None) -> moderngl.Context:
     """An EGL context of OpenGL 4.3 or later where the driver has one (for multi-draw), else of 3.3."""
     kwargs = {"backend": "egl"} if index is None else {"backend": "egl", "device_index": index}
     try:
-        # Without ``require`` the NVIDIA driver hands out a 3.3 core context, which lacks glMultiDrawArraysIndirect.
+        # Without ``require`` the NVIDIA driver hands out a 3.3 core context, which lacks glMultiDrawElementsIndirect.
         return moderngl.create_standalone_context(require=430, **kwargs)
     except Exception as exc:  # glcontext / moderngl raise plain Exception subclasses
         if "found" in str(exc):  # no such device: let the caller's device scan end
@@ -503,7 +503,7 @@ class Renderer:
         self._lightmap = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint8).tobytes(), dtype="f1")
         self._lightmap_rect = (0.0, 0.0, 1.0, 1.0)
         self.static_triangles = 0
-        # glMultiDrawArraysIndirect is core in OpenGL 4.3 (llvmpipe and the NVIDIA driver both have it).
+        # glMultiDrawElementsIndirect is core in OpenGL 4.3 (llvmpipe and the NVIDIA driver both have it).
         self.multi_draw = self.ctx.version_code >= 430
         self._indirect: dict[int, moderngl.Buffer] = {}
 

@@ -23,7 +23,7 @@ def street():
 def test_multi_draw_matches_per_run_draws(street):
     renderer = street.renderer
     if not renderer.multi_draw:
-        pytest.skip(f"OpenGL {renderer.ctx.version_code} has no glMultiDrawArraysIndirect")
+        pytest.skip(f"OpenGL {renderer.ctx.version_code} has no glMultiDrawElementsIndirect")
     ego = actor_state(1, "vehicle.lincoln.mkz_2020", -30.0, 5.25, 0.0, role_name="hero")
     other = actor_state(2, "vehicle.tesla.model3", -15.0, 5.25, 0.0)
     snap = snapshot_of([ego, other], NOON)

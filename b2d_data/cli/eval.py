@@ -1,13 +1,16 @@
-"""``b2d-eval``: Bench2Drive metrics of Leaderboard result files.
+"""``b2d-eval``: closed-loop evaluation of Leaderboard agents and Bench2Drive metrics of result files.
+
+``b2d-eval run --agent AGENT.py --routes FILE.xml --out DIR [...]`` evaluates an agent (``cli/eval_run.py``).
 
 ``b2d-eval summary RESULTS... [--routes XML] [--metric-dir DIR] [--maps-dir DIR] [--num-routes N]
 [--out PATH.json] [--names NAME...] [--strict] [--corrected-smoothness] [--merge]``
 
 Each RESULT is one result set, shown as one column: a result JSON file (per-process checkpoint or
-merged.json), a directory of per-process files (every ``*.json`` but merged.json), or several files
+merged.json), a directory of per-process files (every ``*.json`` but merged.json), the output folder of
+``b2d-eval run`` (its records, route file, route count and metric_info are used), or several files
 joined with ``+`` (``eval_0.json+eval_1.json``). ``--merge`` makes all RESULTS one set instead (handy
-with a shell glob). The table goes to stdout, every figure to the JSON file, and, when ``--routes`` is
-given, a bar chart of the abilities to ``<out stem>_abilities.png`` beside the JSON.
+with a shell glob). The table goes to stdout, every figure to the JSON file, and, when the routes are
+known, a bar chart of the abilities to ``<out stem>_abilities.png`` beside the JSON.
 """
 
 from __future__ import annotations
@@ -52,7 +55,44 @@ def _collection_of(results_file: Path) -> tuple[Path, int] | None:
     return collection_of(results_file)
 
 
+def _eval_folders(args: argparse.Namespace) -> None:
+    """Make ``b2d-eval run`` folders among RESULTS usable as they are: their records, and (unless given) their
+    route file, route count and metric_info folder."""
+    from b2d_data.closed_loop.evaluator import RECORDS_DIR, ROUTES_FILE, read_settings
+    from b2d_data.closed_loop.route_process import METRIC_DIR
+
+    folders = [Path(a) for a in args.results if "+" not in a and read_settings(Path(a)) is not None]
+    if not folders:
+        return
+    original = list(args.results)
+    args.results = [str(Path(a) / RECORDS_DIR) if Path(a) in folders else a for a in args.results]
+    first = folders[0]
+    settings = read_settings(first) or {}
+    if args.routes is None and (first / ROUTES_FILE).is_file():
+        args.routes = first / ROUTES_FILE
+    if args.num_routes is None and isinstance(settings.get("expected_routes"), int):
+        args.num_routes = settings["expected_routes"]
+        reps = settings.get("repetitions", 1)
+        args.num_routes_reason = (f"the routes of the b2d-eval run in {first} ({first / ROUTES_FILE}"
+                                  f"{f' × {reps} repetitions' if reps != 1 else ''})")  # fmt: skip
+    if args.names is None and not args.merge:
+        args.names = [Path(a).name for a in original]
+    if not args.metric_dir and all((f / METRIC_DIR).is_dir() for f in folders):
+        args.metric_dir = [f / METRIC_DIR for f in folders]
+        if args.merge or len(folders) != len(args.results):
+            args.metric_dir = args.metric_dir[:1]
+
+
+def summarise_eval_folder(folder: Path) -> None:
+    """Print the Bench2Drive summary of a ``b2d-eval run`` folder and save it as ``<folder>/summary.json``."""
+    args = _summary_parser(argparse.ArgumentParser().add_subparsers()).parse_args(
+        [str(folder), "--out", str(Path(folder) / "summary.json")]
+    )
+    _run_summary(args)
+
+
 def _run_summary(args: argparse.Namespace) -> int:
+    _eval_folders(args)
     n_sets = 1 if args.merge else len(args.results)
     # Bare names of shipped files (bench2drive220.xml, VAD_merged_results.json) work from any folder.
     args.results = [str(shipped_or_given(Path(a))) if "+" not in a else a for a in args.results]
@@ -75,6 +115,7 @@ def _run_summary(args: argparse.Namespace) -> int:
     routes = read_routes(args.routes) if args.routes is not None else None
     settings = EvalSettings(
         num_routes=args.num_routes,
+        num_routes_reason=getattr(args, "num_routes_reason", None),
         routes=routes,
         routes_file=args.routes,
         corrected_smoothness=args.corrected_smoothness,
@@ -110,7 +151,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=PROG, description="Bench2Drive metrics of Leaderboard result files.")
     sub = parser.add_subparsers(dest="command", required=True)
     _summary_parser(sub)
+    from b2d_data.cli import eval_run
+
+    eval_run.add_parser(sub)
     args = parser.parse_args(argv)
+    if args.command == "run":
+        return eval_run.run(args)
     problem = _argument_problem(args)
     if problem:
         parser.error(problem)

@@ -53,14 +53,17 @@ _TEMP_RE = re.compile(r"^\.(?P<name>.+)\.(?:tmp|old)-(?P<pid>\d+)-[0-9a-f]+$")
 
 
 @contextlib.contextmanager
-def corpus_lock(out: Path) -> Iterator[None]:
-    """Hold ``<out>/.b2d_collect.lock`` so that two collections never write one folder (released on any exit)."""
+def corpus_lock(
+    out: Path, lock_file: str = LOCK_FILE, owner: str = "b2d-collect", error: type[Exception] = CollectError
+) -> Iterator[None]:
+    """Hold ``<out>/<lock_file>`` so that two runs never write one folder (released on any exit); a busy folder
+    raises ``error`` naming the ``owner`` command that holds it."""
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / LOCK_FILE, "a+") as f:
+    with open(out / lock_file, "a+") as f:
         try:
             fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            raise CollectError(f"another b2d-collect is writing {out} (it holds {out / LOCK_FILE})") from None
+            raise error(f"another {owner} is writing {out} (it holds {out / lock_file})") from None
         try:
             yield
         finally:

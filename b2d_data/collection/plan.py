@@ -30,8 +30,8 @@ from b2d_data.collection.towns import (
     default_preset,
     load_map,
     preset_town_name,
+    route_town,
     shipped_town,
-    xodr_in_folder,
     xodr_source,
 )
 from b2d_data.format.errors import B2DFormatError
@@ -281,17 +281,7 @@ def _file_plan(config: CollectConfig) -> CollectionPlan:
 def _town_for(config: CollectConfig, town: str) -> TownSource | None:
     """A route file's town: the --xodr file or folder, else a generated preset or a shipped CARLA town of that name."""
     try:
-        if config.xodr is not None:
-            if config.xodr.is_dir():
-                return xodr_in_folder(config.xodr, town)
-            source = xodr_source(config.xodr)
-            return source if source.name == town else None
-        from b2d_data.maps import towngen
-
-        presets = {p.town: p.name for p in towngen.TOWN_PRESETS.values()}
-        if config.town is not None:
-            return TownSource(preset=config.town) if presets.get(town) == config.town else None
-        return TownSource(preset=presets[town]) if town in presets else shipped_town(town)
+        return route_town(town, config.xodr, config.town)
     except TownError as exc:
         raise CollectError(str(exc)) from None
 

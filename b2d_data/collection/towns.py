@@ -122,6 +122,26 @@ def xodr_in_folder(folder: str | os.PathLike[str], town: str) -> TownSource | No
     return xodr_source(path) if path.is_file() else None
 
 
+def route_town(town: str, xodr: Path | None = None, preset: str | None = None) -> TownSource | None:
+    """The map of a route file's town, or None when there is none: the ``xodr`` file (when its stem is ``town``) or
+    folder (``<xodr>/<town>.xodr``), else a generated preset of that town name (only ``preset`` when given), else a
+    shipped CARLA town. Raises :class:`TownError` for a town or file name unfit for clip names (a route file's town
+    becomes part of a path only once it is known to be a plain ``Town<digits>`` name)."""
+    if not is_town_name(town):
+        raise TownError(f"route town {town!r} is not a town name (Town<digits> or Town<digits>HD)")
+    if xodr is not None:
+        if xodr.is_dir():
+            return xodr_in_folder(xodr, town)
+        source = xodr_source(xodr)
+        return source if source.name == town else None
+    from b2d_data.maps import towngen
+
+    presets = {p.town: p.name for p in towngen.TOWN_PRESETS.values()}
+    if preset is not None:
+        return TownSource(preset=preset) if presets.get(town) == preset else None
+    return TownSource(preset=presets[town]) if town in presets else shipped_town(town)
+
+
 def load_map(source: TownSource) -> Map:
     """The Map of a file-backed source, loaded once per process (reloaded when the file changes)."""
     if source.xodr is None:

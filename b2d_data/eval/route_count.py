@@ -39,7 +39,7 @@ class RouteCount:
 def route_count(result_set: ResultSet, settings: EvalSettings) -> RouteCount:
     """The number of routes ``result_set`` is scored over, and why (see the module docstring for the order)."""
     if settings.num_routes is not None:
-        return RouteCount(settings.num_routes, "--num-routes")
+        return RouteCount(settings.num_routes, settings.num_routes_reason or "--num-routes")
     if settings.routes is not None:
         where = settings.routes_file if settings.routes_file is not None else "the route XML"
         return RouteCount(len(settings.routes), f"the routes of {where}")

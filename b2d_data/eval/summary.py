@@ -44,6 +44,8 @@ class EvalSettings:
     #: Denominator of driving score and success rate; None → the route XML's count, else the collection's (records
     #: of b2d-collect), else 220 (``route_count.py``).
     num_routes: int | None = None
+    #: Where ``num_routes`` comes from, for the user (default: the ``--num-routes`` option).
+    num_routes_reason: str | None = None
     routes: Sequence[Route] | None = None
     routes_file: Path | None = None
     #: Per result set, the folder holding ``<save_name>/metric_info.json`` (None → no smoothness).

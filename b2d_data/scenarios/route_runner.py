@@ -43,6 +43,19 @@ SPAWN_HEIGHT = 0.5
 ROUTE_INDEX_WINDOW = 5
 
 
+class RouteFailure(Exception):
+    """Raised by an agent (or the ``on_start`` hook) to end the route with a Leaderboard failure message.
+
+    ``failure`` is the text after ``"Failed - "`` in the record's status (``Agent couldn't be set up``, ``Agent's
+    sensors were invalid``, ``Agent crashed``, ...); ``detail`` says what happened, for logs and run logs.
+    """
+
+    def __init__(self, failure: str, detail: str = "") -> None:
+        super().__init__(f"{failure}: {detail}" if detail else failure)
+        self.failure = failure
+        self.detail = detail
+
+
 class Agent(Protocol):
     """What drives the ego: the privileged expert, or any policy."""
 
@@ -273,17 +286,27 @@ class RouteRunner:
         snapshot: Snapshot | None = None
         try:
             if self.on_start is not None:
-                self.on_start(ego_id)  # the caller's own hook (e.g. mounting the rig): its errors propagate
-            try:
-                sim.background.start(ego_id, list(dense.waypoints))
-                background_started = True
-                manager = self.scenario_manager_factory(ScenarioSetup(sim, sim.map, self.route, dense, ego_id, rng))
-                # Build (and trigger) what is due at the start before the first tick, so that the agent's first
-                # step already sees it (ParkingExit moves the ego into the parking lane at the route start).
-                manager.tick(sim.snapshot(), 0)
-            except Exception:
-                log.exception("route %s: starting background traffic or scenarios failed", self.route.id)
-                failure = stop_reason = statistics.SIMULATION_CRASHED_FAILURE
+                # The caller's own hook (mounting the rig, setting up an agent): its errors propagate, except a
+                # RouteFailure, which ends the route with that failure (an agent that cannot be set up).
+                try:
+                    self.on_start(ego_id)
+                except RouteFailure as exc:
+                    log.error("route %s: %s", self.route.id, exc)
+                    failure = stop_reason = exc.failure
+                    detail = exc.detail
+            if not failure:
+                try:
+                    sim.background.start(ego_id, list(dense.waypoints))
+                    background_started = True
+                    manager = self.scenario_manager_factory(
+                        ScenarioSetup(sim, sim.map, self.route, dense, ego_id, rng)
+                    )
+                    # Build (and trigger) what is due at the start before the first tick, so that the agent's
+                    # first step already sees it (ParkingExit moves the ego into the parking lane at the start).
+                    manager.tick(sim.snapshot(), 0)
+                except Exception:
+                    log.exception("route %s: starting background traffic or scenarios failed", self.route.id)
+                    failure = stop_reason = statistics.SIMULATION_CRASHED_FAILURE
             route_index = 0
             weather_percentage = 0.0
             while not failure:
@@ -324,6 +347,11 @@ class RouteRunner:
                 criteria.update(snapshot, ego, route_index)
                 try:
                     control = self.agent.run_step(snapshot, hints)
+                except RouteFailure as exc:
+                    log.error("route %s: tick %d: %s", self.route.id, ticks, exc)
+                    failure = stop_reason = exc.failure
+                    detail = exc.detail
+                    break
                 except Exception:
                     log.exception("route %s: the agent crashed at tick %d", self.route.id, ticks)
                     failure = stop_reason = statistics.AGENT_CRASHED_FAILURE

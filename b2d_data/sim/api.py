@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum, IntEnum
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -283,6 +283,39 @@ class RigConfig:
     radar_v004_mounts: bool = False
 
 
+#: Blueprint ids of the physical sensors an agent may mount (:class:`SensorMount`), as CARLA names them.
+CAMERA_RGB = "sensor.camera.rgb"
+LIDAR_RAY_CAST = "sensor.lidar.ray_cast"
+RADAR = "sensor.other.radar"
+GNSS = "sensor.other.gnss"
+IMU = "sensor.other.imu"
+MOUNTABLE_SENSORS: tuple[str, ...] = (CAMERA_RGB, LIDAR_RAY_CAST, RADAR, GNSS, IMU)
+
+
+@dataclass(frozen=True)
+class SensorMount:
+    """One physical sensor of an agent's own rig, as the Leaderboard's agent wrapper spawns it.
+
+    ``type_id`` is the CARLA blueprint id (one of :data:`MOUNTABLE_SENSORS`), ``sensor_id`` the key the agent reads
+    the data by, ``transform`` the pose relative to the ego actor (CARLA ego frame: x forward, y right, z up;
+    degrees) and ``attributes`` the blueprint attributes as strings, exactly as the wrapper sets them:
+    ``image_size_x``, ``image_size_y``, ``fov`` for cameras; ``range``, ``rotation_frequency``, ``channels``,
+    ``upper_fov``, ``lower_fov``, ``points_per_second``, ``atmosphere_attenuation_rate``, ``dropoff_general_rate``,
+    ``dropoff_intensity_limit``, ``dropoff_zero_intensity`` for the LiDAR; ``horizontal_fov``, ``vertical_fov``,
+    ``points_per_second``, ``range`` for radars; ``noise_*`` standard deviations and biases for GNSS and IMU.
+    """
+
+    sensor_id: str
+    type_id: str
+    transform: Transform = field(default_factory=Transform)
+    attributes: Mapping[str, str] = field(default_factory=dict)
+
+    def attribute(self, name: str, default: float) -> float:
+        """A numeric attribute, or ``default`` when the mount does not set it."""
+        value = self.attributes.get(name)
+        return default if value is None else float(value)
+
+
 class SimulatorError(RuntimeError):
     """A simulator request that cannot be carried out (bad actor id, blocked spawn point, ...)."""
 
@@ -443,6 +476,24 @@ class Simulator(Protocol):
 
     def read_sensors(self) -> SensorData:
         """Capture every mounted sensor at the current tick."""
+        ...
+
+    def attach_sensors(self, ego_id: int, mounts: Sequence[SensorMount]) -> None:
+        """Mount an agent's own sensors on the ego (replacing any mounted before)."""
+        ...
+
+    def read_attached_sensors(self) -> dict[str, Any]:
+        """Every sensor of :meth:`attach_sensors` at the current tick, keyed by sensor id, as CARLA delivers them
+        to a Leaderboard agent (``input_data`` values without the frame):
+
+        - ``sensor.camera.rgb``: uint8 (H, W, 4), **BGRA**, alpha 255;
+        - ``sensor.lidar.ray_cast``: float32 (N, 4) x, y, z in the sensor frame (x forward, y right, z up) and
+          intensity; the part of the sweep covered since the previous tick (half a turn at 10 Hz and 20 ticks/s),
+          with CARLA's general and intensity drop-off;
+        - ``sensor.other.radar``: float32 (N, 4) depth (m), altitude (rad), azimuth (rad), velocity (m/s);
+        - ``sensor.other.gnss``: float64 (3,) latitude, longitude (degrees), altitude (m), noise as attributed;
+        - ``sensor.other.imu``: float64 (7,) accelerometer xyz (m/s²), gyroscope xyz (rad/s), compass (rad).
+        """
         ...
 
     def close(self) -> None:

@@ -38,6 +38,7 @@ from b2d_data.sim.api import (
     CollisionEvent,
     RigConfig,
     SensorData,
+    SensorMount,
     SimulatorError,
     Snapshot,
     SpawnError,
@@ -156,6 +157,8 @@ class BuiltinSimulator:
         self._ground: GroundModel = ground_from_map(self._map)
         self._sensors: Any = None
         self._rig_ego: int | None = None
+        self._agent_sensors: Any = None  # an agent's own rig (attach_sensors), apart from the Bench2Drive one
+        self._agent_ego: int | None = None
         self._closed = False
 
         light_specs, sign_specs = furniture_from_map(self._map)
@@ -295,6 +298,8 @@ class BuiltinSimulator:
         if self._rig_ego == actor_id and self._sensors is not None:
             self._sensors.close()
             self._sensors, self._rig_ego = None, None
+        if self._agent_ego == actor_id:
+            self._release_agent_sensors()
 
     def apply_control(self, actor_id: int, control: VehicleControl | WalkerControl) -> None:
         """Set the control a vehicle or walker applies from the next tick on."""
@@ -417,11 +422,35 @@ class BuiltinSimulator:
             raise SimulatorError("no sensor rig mounted: call attach_rig(ego_id) first")
         return self._sensors.capture(self._snapshot, self._rig_ego)
 
+    def attach_sensors(self, ego_id: int, mounts: Sequence[SensorMount]) -> None:
+        """Mount an agent's own sensors on the ego, replacing any mounted before (imported on first use)."""
+        self._actor(ego_id)
+        try:
+            from b2d_data.sim.builtin.sensors.mounted import MountedSensors
+        except ImportError as exc:
+            raise SimulatorError(f"the builtin sensor suite is not available: {exc}") from exc
+        # Built before the old rig goes, so that a rejected list leaves the mounted sensors as they were.
+        sensors = MountedSensors(self._map, mounts, self._seed, start_frame=self._snapshot.frame)
+        self._release_agent_sensors()
+        self._agent_sensors, self._agent_ego = sensors, ego_id
+
+    def read_attached_sensors(self) -> dict[str, Any]:
+        """Every sensor of :meth:`attach_sensors` at the current tick, keyed by sensor id, as CARLA delivers them."""
+        if self._agent_sensors is None or self._agent_ego is None:
+            raise SimulatorError("no agent sensors mounted: call attach_sensors(ego_id, mounts) first")
+        return self._agent_sensors.capture(self._snapshot, self._agent_ego)
+
+    def _release_agent_sensors(self) -> None:
+        if self._agent_sensors is not None:
+            self._agent_sensors.close()
+        self._agent_sensors, self._agent_ego = None, None
+
     def close(self) -> None:
-        """Release the sensor suite and forget every actor."""
+        """Release both sensor rigs and forget every actor."""
         if self._sensors is not None:
             self._sensors.close()
             self._sensors = None
+        self._release_agent_sensors()
         if self._background_manager is not None:
             self._background_manager.forget()
         self._actors.clear()

@@ -74,6 +74,59 @@ def geolocator_of(town_map: object | None) -> Callable[[Location], tuple[float, 
     return lambda loc: _as_lat_lon_alt(fn(loc))
 
 
+@dataclass(frozen=True)
+class ImuNoise:
+    """IMU noise per sensor axis (CARLA's ``noise_accel_stddev_*``, ``noise_gyro_stddev_*``, ``noise_gyro_bias_*``)."""
+
+    accel_stddev: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_stddev: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class GnssNoise:
+    """GNSS noise of latitude, longitude (degrees) and altitude (m): standard deviations and biases."""
+
+    stddev: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+def imu_reading(ego: ActorState, sensor_to_world: np.ndarray, rng: np.random.Generator, noise: ImuNoise) -> ImuReading:
+    """The IMU of a sensor rigidly mounted on the ego (pose 4×4 sensor → world); draws accelerometer then gyroscope
+    noise from ``rng``."""
+    rot = sensor_to_world[:3, :3]
+    omega = np.radians(ego.angular_velocity.to_array())
+    # Rigid-body lever arm of the mount: centripetal term of the yaw rate (roll/pitch rates are small).
+    lever = sensor_to_world[:3, 3] - ego.transform.location.to_array()
+    yaw_rate = omega[2]
+    centripetal = np.array([-lever[0], -lever[1], 0.0]) * yaw_rate * yaw_rate
+    accel_world = ego.acceleration.to_array() + centripetal + np.array([0.0, 0.0, GRAVITY])
+    accel = rot.T @ accel_world + rng.normal(0.0, noise.accel_stddev)
+    gyro = rot.T @ omega + rng.normal(0.0, noise.gyro_stddev) + np.asarray(noise.gyro_bias)
+    return ImuReading(
+        accelerometer=(float(accel[0]), float(accel[1]), float(accel[2])),
+        gyroscope=(float(gyro[0]), float(gyro[1]), float(gyro[2])),
+        compass=compass_of(rot[0, 0], rot[1, 0]),
+    )
+
+
+def gnss_reading(
+    location: np.ndarray,
+    geolocate: Callable[[Location], tuple[float, float, float]],
+    rng: np.random.Generator,
+    noise: GnssNoise,
+) -> GnssReading:
+    """The GNSS fix of a world location; draws latitude, longitude then altitude noise from ``rng``."""
+    lat, lon, alt = geolocate(Location.from_array(location))
+    lat_bias, lon_bias, alt_bias = noise.bias
+    lat_std, lon_std, alt_std = noise.stddev
+    return GnssReading(
+        latitude=lat + lat_bias + float(rng.normal(0.0, lat_std)),
+        longitude=lon + lon_bias + float(rng.normal(0.0, lon_std)),
+        altitude=alt + alt_bias + float(rng.normal(0.0, alt_std)),
+    )
+
+
 @dataclass
 class ImuGnss:
     """Reads IMU, GNSS and speedometer from the ego state; noise is seeded by ``seed`` and the frame number."""
@@ -93,25 +146,7 @@ class ImuGnss:
         """(IMU, GNSS, speed) at this tick."""
         rng = np.random.default_rng([self.seed, frame, 77])
         pose = self.sensor_pose(ego)
-        rot = pose[:3, :3]
-        omega = np.radians(ego.angular_velocity.to_array())
-        # Rigid-body lever arm of the mount: centripetal term of the yaw rate (roll/pitch rates are small).
-        lever = pose[:3, 3] - ego.transform.location.to_array()
-        yaw_rate = omega[2]
-        centripetal = np.array([-lever[0], -lever[1], 0.0]) * yaw_rate * yaw_rate
-        accel_world = ego.acceleration.to_array() + centripetal + np.array([0.0, 0.0, GRAVITY])
-        accel = rot.T @ accel_world + rng.normal(0.0, self.noise.accel_noise)
-        gyro = rot.T @ omega + rng.normal(0.0, self.noise.gyro_noise)
-        compass = compass_of(rot[0, 0], rot[1, 0])
-        imu = ImuReading(
-            accelerometer=(float(accel[0]), float(accel[1]), float(accel[2])),
-            gyroscope=(float(gyro[0]), float(gyro[1]), float(gyro[2])),
-            compass=compass,
-        )
-        lat, lon, alt = geolocate(Location.from_array(pose[:3, 3]))
-        gnss = GnssReading(
-            latitude=lat + float(rng.normal(0.0, self.noise.gnss_noise_deg)),
-            longitude=lon + float(rng.normal(0.0, self.noise.gnss_noise_deg)),
-            altitude=alt + float(rng.normal(0.0, self.noise.gnss_noise_alt)),
-        )
+        imu = imu_reading(ego, pose, rng, ImuNoise(self.noise.accel_noise, self.noise.gyro_noise))
+        deg, alt = self.noise.gnss_noise_deg, self.noise.gnss_noise_alt
+        gnss = gnss_reading(pose[:3, 3], geolocate, rng, GnssNoise((deg, deg, alt)))
         return imu, gnss, float(ego.forward_speed())

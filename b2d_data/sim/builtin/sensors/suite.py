@@ -2,7 +2,8 @@
 
 The static scene (map mesh, then traffic-light and sign fixtures once the snapshot shows them) is uploaded to the
 renderer and to Embree once; each capture meshes the actors, renders the cameras, casts the LiDAR and radar rays
-into the same triangles, and reads IMU, GNSS and speedometer from the ego state.
+into the same triangles, and reads IMU, GNSS and speedometer from the ego state. :class:`SensorScene` is that scene
+machinery, shared with the agent rigs of ``mounted.py``.
 """
 
 from __future__ import annotations
@@ -74,64 +75,60 @@ class CaptureTimings:
     """
 
     actors: float = 0.0
-    cameras: float = 0.0  # the six cameras and the top-down camera
+    cameras: float = 0.0  # every camera of the rig (six and the top-down camera for Bench2Drive's)
     lidar: float = 0.0
     radar: float = 0.0
     imu_gnss: float = 0.0
     wall: float = 0.0
 
 
-class SensorSuite:
-    """Renders and ray-casts the whole rig for an ego in a :class:`Snapshot` of a town."""
+def scene_of_map(map: Map | None) -> StaticScene:
+    """The town's static scene of a map (``town_scene``; an empty layout without a map)."""
+    return town_scene(layout_from_map(map) if map is not None else RoadLayout([]))
 
-    def __init__(self, map: Map | None, config: RigConfig = RigConfig(), seed: int = 0) -> None:  # noqa: A002
-        layout = layout_from_map(map) if map is not None else RoadLayout([])
-        # ``seed`` drives the sensor noise; the scenery is the town's (``town_scene``).
-        self._setup(town_scene(layout), config, seed, geolocator_of(map))
-        self.map = map
 
-    @classmethod
-    def from_scene(
-        cls,
-        scene: StaticScene,
-        config: RigConfig = RigConfig(),
-        seed: int = 0,
-        geolocate: Geolocator | None = None,
-    ) -> SensorSuite:
-        """A suite over an already built static scene (tests, benchmarks, layouts without a map)."""
-        suite = cls.__new__(cls)
-        suite._setup(scene, config, seed, geolocate or geolocator_of(None))
-        suite.map = None
-        return suite
+@dataclass
+class TickScene:
+    """What every sensor of a rig sees at one tick: the ego, the actors' meshes, the lamps and the lighting."""
 
-    def _setup(self, scene: StaticScene, config: RigConfig, seed: int, geolocate: Geolocator) -> None:
-        self.config = config
-        self.seed = seed
+    snapshot: Snapshot
+    ego: ActorState
+    actor_parts: list[tuple[int, TriangleMesh]]
+    lamps: TriangleMesh
+    light: Lighting
+
+
+class SensorScene:
+    """The town as a rig's sensors see it: the static scene in the renderer and the ray caster (either optional),
+    traffic-light and sign fixtures, lamps, actor meshes, lighting and the ego's headlight.
+
+    Subclasses call :meth:`_setup_scene`, then per capture :meth:`_prepare` (which also hands the tick's actors to the
+    ray caster, so rays may be cast on ``_pool`` from then on) and :meth:`_render_views`.
+    """
+
+    scene: StaticScene
+    renderer: Renderer | None
+    caster: RayCaster | None
+
+    def _setup_scene(self, scene: StaticScene, renderer: Renderer | None, rays: bool) -> None:
         self.scene = scene
-        self._geolocate = geolocate
-        cams = [c for c in config.cameras if c in CAMERA_BY_FOLDER]
-        self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
-        self.renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes)  # type: ignore[arg-type]
-                         if self._camera_specs else None)  # fmt: skip
+        self.renderer = renderer
         if self.renderer is not None and len(scene.lamps):
             self.renderer.set_lightmap(*scene.lightmap())
-        self.caster = RayCaster()
-        self.lidar = Lidar(LIDAR, config.lidar_azimuth_steps)
-        specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
-        self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
-        self.imu = ImuGnss(NOISE, seed)
+        # Building Embree's scenes costs time per tick: a rig without LiDAR or radar has no caster.
+        self.caster = RayCaster() if rays else None
         self.actor_meshes = ActorMeshBuilder()
         self.fixtures: list[Fixture] = []
         self._fixture_key: tuple | None = None
         self._lamp_cache: dict[tuple[int, TrafficLightState], TriangleMesh] = {}
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="b2d-rays")
-        self.timings = CaptureTimings()
         self._set_static(scene.mesh)
 
     def _set_static(self, mesh: TriangleMesh) -> None:
         if self.renderer is not None:
             self.renderer.set_static(mesh)
-        self.caster.set_static(mesh)
+        if self.caster is not None:
+            self.caster.set_static(mesh)
 
     def _update_fixtures(self, snapshot: Snapshot) -> None:
         key = fixture_key(snapshot)
@@ -142,25 +139,6 @@ class SensorSuite:
         self._lamp_cache.clear()
         self._set_static(merge([self.scene.mesh, fixture_static_mesh(self.fixtures)]))
 
-    # ------------------------------------------------------------------------------------------ poses
-    def sensor_poses(self, ego: ActorState) -> dict[str, np.ndarray]:
-        """Sensor → world 4×4 of every rig sensor, keyed by sensor id (CAM_*, TOP_DOWN, RADAR_*, LIDAR_TOP)."""
-        ego_m = ego.transform.matrix()
-        radars = RADARS_V004 if self.config.radar_v004_mounts else RADARS_V0
-        out = {c.sensor_id: ego_m @ c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
-        out.update({r.sensor_id: ego_m @ r.mount.matrix() for r in radars})
-        out[LIDAR.sensor_id] = ego_m @ LIDAR.mount.matrix()
-        return out
-
-    @staticmethod
-    def _point_velocity(ego: ActorState, point: np.ndarray) -> np.ndarray:
-        """World velocity of a point rigidly attached to the ego (yaw rate only)."""
-        v = ego.velocity.to_array()
-        yaw_rate = math.radians(ego.angular_velocity.z)
-        r = point - ego.transform.location.to_array()
-        return v + yaw_rate * np.array([-r[1], r[0], 0.0])
-
-    # ------------------------------------------------------------------------------------------ capture
     def _lamps(self, states: dict[int, TrafficLightState]) -> TriangleMesh:
         """Lamp meshes of every light in its current state (each (light, state) meshed once)."""
         parts = []
@@ -175,7 +153,123 @@ class SensorSuite:
             parts.append(mesh)
         return merge(parts)
 
-    def _cast_rays(self, snapshot: Snapshot, ego: ActorState, poses: dict[str, np.ndarray]):
+    def _prepare(self, snapshot: Snapshot, ego_id: int) -> TickScene:
+        """Mesh the tick's actors and lamps and hand them to the ray caster; the renderer gets them in
+        :meth:`_render_views`."""
+        ego = snapshot.actors.get(ego_id)
+        if ego is None:
+            raise KeyError(f"ego actor {ego_id} is not in snapshot frame {snapshot.frame}")
+        light = Lighting.from_weather(snapshot.weather)
+        if self.renderer is None and self.caster is None:
+            return TickScene(snapshot, ego, [], TriangleMesh.empty(), light)  # IMU and GNSS need no geometry
+        self._update_fixtures(snapshot)
+        actor_parts = self.actor_meshes.build_parts(snapshot.actors, light.night > 0.5, snapshot.timestamp)
+        lamps = self._lamps({i: t.state for i, t in snapshot.traffic_lights.items()})
+        if self.caster is not None:
+            # The LiDAR and radars see everything but the ego (their rays start inside or next to its body).
+            self.caster.set_dynamic(merge([m for i, m in actor_parts if i != ego_id] + [lamps]))
+        return TickScene(snapshot, ego, actor_parts, lamps, light)
+
+    def _render_views(self, tick: TickScene, batches: list[list[CameraView]]) -> list[CameraFrame]:
+        """Render every view of ``batches``, in order.
+
+        On a hardware GPU all views are one batch, so a frame waits for the GPU once: with many route processes
+        sharing a GPU, each wait lasts until the processes ahead had their turn. On llvmpipe each batch is rendered on
+        its own (the surround and top-down cameras in one batch measured 3–8 % fewer frames/s on the 2-core
+        machine).
+        """
+        assert self.renderer is not None
+        self.renderer.set_dynamic(merge([m for _, m in tick.actor_parts] + [tick.lamps]))
+        head = self._headlight(tick.ego) if tick.light.night > 0.0 else None
+        if self.renderer.hardware:
+            return self.renderer.render([v for batch in batches for v in batch], tick.light, head)
+        return [frame for batch in batches if batch for frame in self.renderer.render(batch, tick.light, head)]
+
+    @staticmethod
+    def _headlight(ego: ActorState) -> tuple[np.ndarray, np.ndarray]:
+        """Ego headlight origin (front bumper, 0.7 m up) and beam direction (forward, 5° down)."""
+        m = ego.transform.matrix()
+        bb = ego.bounding_box
+        origin = m[:3, :3] @ np.array([bb.location.x + bb.extent.x, 0.0, 0.7]) + m[:3, 3]
+        a = math.radians(-5.0)
+        beam = m[:3, :3] @ np.array([math.cos(a), 0.0, math.sin(a)])
+        return origin, beam
+
+    @staticmethod
+    def _point_velocity(ego: ActorState, point: np.ndarray) -> np.ndarray:
+        """World velocity of a point rigidly attached to the ego (yaw rate only)."""
+        v = ego.velocity.to_array()
+        yaw_rate = math.radians(ego.angular_velocity.z)
+        r = point - ego.transform.location.to_array()
+        return v + yaw_rate * np.array([-r[1], r[0], 0.0])
+
+    def _scan_radars(self, tick: TickScene, radars: list[tuple[str, np.ndarray, Radar]]) -> dict[str, np.ndarray]:
+        """Detections of each (key, sensor → world, radar), relative to the radar's own motion with the ego."""
+        assert self.caster is not None
+        velocities = {a.id: a.velocity.to_array() for a in tick.snapshot.actors.values()}
+        out = {}
+        for key, pose, radar in radars:
+            own = RadarPose(pose, self._point_velocity(tick.ego, pose[:3, 3]))
+            out[key] = radar.scan(self.caster, own, tick.snapshot.frame, velocities)
+        return out
+
+    def close(self) -> None:
+        """Release the GL context and the ray-casting thread."""
+        self._pool.shutdown(wait=True)
+        if self.renderer is not None:
+            self.renderer.close()
+            self.renderer = None
+
+
+class SensorSuite(SensorScene):
+    """Renders and ray-casts the whole rig for an ego in a :class:`Snapshot` of a town."""
+
+    def __init__(self, map: Map | None, config: RigConfig = RigConfig(), seed: int = 0) -> None:  # noqa: A002
+        # ``seed`` drives the sensor noise; the scenery is the town's (``town_scene``).
+        self._setup(scene_of_map(map), geolocator_of(map), config, seed)
+        self.map = map
+
+    @classmethod
+    def from_scene(
+        cls,
+        scene: StaticScene,
+        config: RigConfig = RigConfig(),
+        seed: int = 0,
+        geolocate: Geolocator | None = None,
+    ) -> SensorSuite:
+        """A suite over an already built static scene (tests, benchmarks, layouts without a map)."""
+        suite = cls.__new__(cls)
+        suite._setup(scene, geolocate or geolocator_of(None), config, seed)
+        suite.map = None
+        return suite
+
+    def _setup(self, scene: StaticScene, geolocate: Geolocator, config: RigConfig, seed: int) -> None:
+        self.config = config
+        self.seed = seed
+        self._geolocate = geolocate
+        cams = [c for c in config.cameras if c in CAMERA_BY_FOLDER]
+        self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
+        renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes)  # type: ignore[arg-type]
+                    if self._camera_specs else None)  # fmt: skip
+        self._setup_scene(scene, renderer, rays=config.lidar or config.radar)
+        self.lidar = Lidar(LIDAR, config.lidar_azimuth_steps)
+        specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
+        self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
+        self.imu = ImuGnss(NOISE, seed)
+        self.timings = CaptureTimings()
+
+    # ------------------------------------------------------------------------------------------ poses
+    def sensor_poses(self, ego: ActorState) -> dict[str, np.ndarray]:
+        """Sensor → world 4×4 of every rig sensor, keyed by sensor id (CAM_*, TOP_DOWN, RADAR_*, LIDAR_TOP)."""
+        ego_m = ego.transform.matrix()
+        radars = RADARS_V004 if self.config.radar_v004_mounts else RADARS_V0
+        out = {c.sensor_id: ego_m @ c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
+        out.update({r.sensor_id: ego_m @ r.mount.matrix() for r in radars})
+        out[LIDAR.sensor_id] = ego_m @ LIDAR.mount.matrix()
+        return out
+
+    # ------------------------------------------------------------------------------------------ capture
+    def _cast_rays(self, tick: TickScene, poses: dict[str, np.ndarray]):
         """LiDAR sweep and radar detections (run on the worker thread while the cameras render)."""
         t0 = time.perf_counter()
         if self.config.lidar:
@@ -185,40 +279,29 @@ class SensorSuite:
         t1 = time.perf_counter()
         radar: dict[str, np.ndarray] = {}
         if self.config.radar:
-            velocities = {a.id: a.velocity.to_array() for a in snapshot.actors.values()}
-            for r in self.radars:
-                pose = poses[r.spec.sensor_id]
-                rp = RadarPose(pose, self._point_velocity(ego, pose[:3, 3]))
-                radar[r.spec.dataset] = r.scan(self.caster, rp, snapshot.frame, velocities)
+            radar = self._scan_radars(tick, [(r.spec.dataset, poses[r.spec.sensor_id], r) for r in self.radars])
         return sweep, radar, t1 - t0, time.perf_counter() - t1
 
     def capture(self, snapshot: Snapshot, ego_id: int) -> SensorData:
         """Every sensor of the rig at this snapshot."""
-        ego = snapshot.actors.get(ego_id)
-        if ego is None:
-            raise KeyError(f"ego actor {ego_id} is not in snapshot frame {snapshot.frame}")
         t0 = time.perf_counter()
-        self._update_fixtures(snapshot)
-        light = Lighting.from_weather(snapshot.weather)
-        actor_parts = self.actor_meshes.build_parts(snapshot.actors, light.night > 0.5, snapshot.timestamp)
-        lamps = self._lamps({i: t.state for i, t in snapshot.traffic_lights.items()})
-        poses = self.sensor_poses(ego)
-        # The LiDAR and radars see everything but the ego (their rays start inside or next to its body).
-        self.caster.set_dynamic(merge([m for i, m in actor_parts if i != ego_id] + [lamps]))
+        tick = self._prepare(snapshot, ego_id)
+        poses = self.sensor_poses(tick.ego)
         # Embree releases the GIL: the rays are cast on a worker thread while the cameras render here.
-        rays = self._pool.submit(self._cast_rays, snapshot, ego, poses)
+        rays = self._pool.submit(self._cast_rays, tick, poses)
         t1 = time.perf_counter()
         timings = CaptureTimings(actors=t1 - t0)
 
         cameras: dict[str, CameraFrame] = {}
         try:
             if self.renderer is not None:
-                cameras = self._render(ego, poses, actor_parts, lamps, light, timings)
+                cameras = self._render(tick, poses)
+                timings.cameras = time.perf_counter() - t1
         finally:
             # Never leave the worker running into the next capture, even when rendering failed.
             sweep, radar, timings.lidar, timings.radar = rays.result()
         t3 = time.perf_counter()
-        imu, gnss, speed = self.imu.read(ego, snapshot.frame, self._geolocate)
+        imu, gnss, speed = self.imu.read(tick.ego, snapshot.frame, self._geolocate)
         timings.imu_gnss = time.perf_counter() - t3
         timings.wall = time.perf_counter() - t0
         self.timings = timings
@@ -235,50 +318,12 @@ class SensorSuite:
             sensor_transforms={k: Transform.from_matrix(m) for k, m in poses.items()},
         )
 
-    def _render(
-        self,
-        ego: ActorState,
-        poses: dict[str, np.ndarray],
-        actor_parts: list[tuple[int, TriangleMesh]],
-        lamps: TriangleMesh,
-        light: Lighting,
-        timings: CaptureTimings,
-    ) -> dict[str, CameraFrame]:
-        """The six cameras (with dense labels when configured) and the top-down camera.
-
-        On a hardware GPU all seven are one batch, so a frame waits for the GPU once: with many route processes
-        sharing a GPU, each wait lasts until the processes ahead had their turn. On llvmpipe the top-down camera
-        stays a batch of its own (one batch measured 3–8 % fewer frames/s on the 2-core machine).
-        """
+    def _render(self, tick: TickScene, poses: dict[str, np.ndarray]) -> dict[str, CameraFrame]:
+        """The six cameras (with dense labels when configured) and the top-down camera (a batch of its own on llvmpipe)."""
         cfg = self.config
-        t0 = time.perf_counter()
-        self.renderer.set_dynamic(merge([m for _, m in actor_parts] + [lamps]))
-        head = self._headlight(ego) if light.night > 0.0 else None
         surround = [c for c in self._camera_specs if c.folder != TOP_DOWN.folder]
         top = [c for c in self._camera_specs if c.folder == TOP_DOWN.folder]
         views = [CameraView(poses[c.sensor_id], c.fov, cfg.width, cfg.height, cfg.dense_labels) for c in surround]
         top_views = [CameraView(poses[c.sensor_id], c.fov, cfg.top_down_width, cfg.top_down_height, False) for c in top]
-        if self.renderer.hardware:
-            frames = self.renderer.render(views + top_views, light, head)
-        else:
-            frames = self.renderer.render(views, light, head)
-            frames += self.renderer.render(top_views, light, head) if top_views else []
-        timings.cameras = time.perf_counter() - t0
+        frames = self._render_views(tick, [views, top_views])
         return dict(zip((c.folder for c in surround + top), frames))
-
-    @staticmethod
-    def _headlight(ego: ActorState) -> tuple[np.ndarray, np.ndarray]:
-        """Ego headlight origin (front bumper, 0.7 m up) and beam direction (forward, 5° down)."""
-        m = ego.transform.matrix()
-        bb = ego.bounding_box
-        origin = m[:3, :3] @ np.array([bb.location.x + bb.extent.x, 0.0, 0.7]) + m[:3, 3]
-        a = math.radians(-5.0)
-        beam = m[:3, :3] @ np.array([math.cos(a), 0.0, math.sin(a)])
-        return origin, beam
-
-    def close(self) -> None:
-        """Release the GL context and the ray-casting thread."""
-        self._pool.shutdown(wait=True)
-        if self.renderer is not None:
-            self.renderer.close()
-            self.renderer = None

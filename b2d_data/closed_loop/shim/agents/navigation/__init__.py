@@ -1,0 +1,1 @@
+"""``agents.navigation``: RoadOption and the global route planner."""

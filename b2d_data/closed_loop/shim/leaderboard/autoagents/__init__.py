@@ -1,0 +1,1 @@
+"""``leaderboard.autoagents``: the agent base class and the sensor rules of the agent wrapper."""

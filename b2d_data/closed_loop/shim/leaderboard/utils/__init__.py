@@ -1,0 +1,1 @@
+"""``leaderboard.utils``: route helpers (GPS conversion, downsampling, interpolation)."""

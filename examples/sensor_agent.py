@@ -152,7 +152,7 @@ class SensorAgent(autonomous_agent.AutonomousAgent):
         target = CURVE_SPEED if bend > 0.35 else CRUISE_SPEED
         control = carla.VehicleControl()
         control.steer = steer
-        if self._obstacle(speed) or (self.progress >= len(self.route_xy) - 2):
+        if self._obstacle(speed):
             control.throttle, control.brake = 0.0, 1.0
             return control
         throttle = float(np.clip(self.speed.step(target - speed), 0.0, 0.75))

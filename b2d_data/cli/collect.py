@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
+from b2d_data.cli.ticking_bar import TickingBar
 from b2d_data.format.version import DEFAULT_FORMAT, FormatVersion
 
 if TYPE_CHECKING:  # the collection's modules load only when a collection runs (a fast --help)
@@ -221,43 +222,35 @@ def _stop_on_sigterm() -> object | None:
     return signal.signal(signal.SIGTERM, _interrupt)
 
 
-class ProgressLine:
+class ProgressLine(TickingBar):
     """The progress bar: clips over the target, attempts, the running routes' frames, elapsed time and ETA.
 
-    The collection reports at least every second while routes run; a ticker thread also redraws every second
-    (counting the ETA down from the last report) so that the clock moves through a route's slow set-up too.
+    The collection reports at least every second while routes run; the ticker also redraws every second (counting
+    the ETA down from the last report) so that the clock moves through a route's slow set-up too.
     """
 
     BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} clips, {elapsed} elapsed{postfix}"
 
     def __init__(self, enabled: bool, clock: Callable[[], float] = time.monotonic) -> None:
-        self.enabled, self.clock = enabled, clock
-        self.bar: tqdm | None = None
+        super().__init__(PROG, enabled, clock)
         self.failures = 0
         self._last: Progress | None = None
-        self._last_at = 0.0
-        self._lock = threading.RLock()  # re-entrant: close() may run from an interrupt inside a redraw
-        self._stop = threading.Event()
-        self._ticker: threading.Thread | None = None
 
     def __call__(self, p: Progress) -> None:
         """The collection's progress callback."""
         if p.resumed is not None:
-            self._write(p.resumed.describe())
+            self.write(p.resumed.describe())
         if p.result is not None and p.result.status != "clip":
             self.failures += 1
             if self.enabled:
-                self._write(f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}")
+                self.write(f"route {p.result.route_id} ({p.result.scenario}): {p.result.status} - {p.result.reason}")
         with self._lock:
-            self._last, self._last_at = p, self.clock()
-            if not self.enabled:
-                return
-            if self.bar is None:
-                self.bar = tqdm(total=p.requested, initial=p.clips, desc=PROG, dynamic_ncols=True,
-                                bar_format=self.BAR_FORMAT, file=sys.stderr)  # fmt: skip
-                self._ticker = threading.Thread(target=self._tick, name="b2d-collect-progress", daemon=True)
-                self._ticker.start()
-            self._draw()
+            self._last = p
+            self.reported(p.requested)
+
+    def count(self) -> int:
+        """Clips made."""
+        return self._last.clips if self._last is not None else 0
 
     def text(self) -> str:
         """The part after the clock: attempts, failures, running routes' frames, ETA (counted down since the
@@ -265,35 +258,8 @@ class ProgressLine:
         p = self._last
         if p is None:
             return ""
-        eta = None if p.eta is None else max(p.eta - (self.clock() - self._last_at), 0.0)
+        eta = None if p.eta is None else max(p.eta - self.since_report(), 0.0)
         return f"{p.attempts} attempts, {self.failures} failed | {replace(p, eta=eta).describe()}"
-
-    def _draw(self) -> None:
-        assert self.bar is not None and self._last is not None
-        self.bar.n = self._last.clips
-        self.bar.set_postfix_str(self.text(), refresh=False)
-        self.bar.refresh()
-
-    def _tick(self) -> None:
-        while not self._stop.wait(1.0):
-            with self._lock:
-                if self.bar is not None and self._last is not None:
-                    self._draw()
-
-    def _write(self, line: str) -> None:
-        if self.bar is not None:
-            tqdm.write(line, file=sys.stderr)
-        else:
-            print(line, file=sys.stderr)
-
-    def close(self) -> None:
-        """Stop the ticker and leave the last line on the terminal."""
-        self._stop.set()
-        if self._ticker is not None:
-            self._ticker.join(timeout=5)
-        with self._lock:
-            if self.bar is not None:
-                self.bar.close()
 
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:

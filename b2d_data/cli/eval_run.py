@@ -20,11 +20,13 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-import threading
-import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from tqdm import tqdm
+from b2d_data.cli.ticking_bar import TickingBar
+
+if TYPE_CHECKING:  # the evaluator loads only when an evaluation runs (a fast --help)
+    from b2d_data.closed_loop.evaluator import EvalProgress, EvalResult
 
 PROG = "b2d-eval run"
 
@@ -72,57 +74,35 @@ def _workers(value: str) -> int:
         raise SystemExit(f"{PROG}: error: --workers expects a number or auto, got {value!r}") from None
 
 
-class _ProgressBar:
-    """Routes done over all, failures, the running routes' ticks, elapsed time and ETA; redrawn every second."""
+class _ProgressBar(TickingBar):
+    """Routes done over all, failures, the running routes' ticks, elapsed time and the ETA."""
 
-    FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} routes, {elapsed} elapsed{postfix}"
+    BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} routes, {elapsed} elapsed{postfix}"
 
     def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled
-        self.bar: tqdm | None = None
-        self._last = None
-        self._last_at = 0.0
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._ticker: threading.Thread | None = None
+        super().__init__("b2d-eval", enabled)
+        self._last: EvalProgress | None = None
 
-    def __call__(self, p) -> None:  # noqa: ANN001 - an EvalProgress
+    def __call__(self, p: EvalProgress) -> None:
         with self._lock:
-            self._last, self._last_at = p, time.monotonic()
-            if not self.enabled:
-                return
-            if self.bar is None:
-                self.bar = tqdm(total=p.total, initial=p.done, desc="b2d-eval", dynamic_ncols=True,
-                                bar_format=self.FORMAT, file=sys.stderr)  # fmt: skip
-                self._ticker = threading.Thread(target=self._tick, name="b2d-eval-progress", daemon=True)
-                self._ticker.start()
-            self._draw()
+            self._last = p
+            self.reported(p.total)
 
-    def _draw(self) -> None:
+    def count(self) -> int:
+        """Routes with their record."""
+        return self._last.done if self._last is not None else 0
+
+    def text(self) -> str:
+        """Failures, the first running routes' ticks and completion, the ETA counted down since the last report."""
         from b2d_data.collection.progress import format_seconds
 
         p = self._last
-        assert self.bar is not None and p is not None
-        eta = None if p.eta is None else max(p.eta - (time.monotonic() - self._last_at), 0.0)
+        if p is None:
+            return ""
+        eta = None if p.eta is None else max(p.eta - self.since_report(), 0.0)
         running = "; ".join(f"{r.route_id} {r.frames} ticks {r.completion:.0f}%" for r in p.running[:3])
         more = f" +{len(p.running) - 3} more" if len(p.running) > 3 else ""
-        self.bar.n = p.done
-        self.bar.set_postfix_str(f"{p.failed} failed | {running}{more} | ETA {format_seconds(eta)}", refresh=False)
-        self.bar.refresh()
-
-    def _tick(self) -> None:
-        while not self._stop.wait(1.0):
-            with self._lock:
-                if self.bar is not None and self._last is not None:
-                    self._draw()
-
-    def close(self) -> None:
-        """Stop redrawing and leave the last line."""
-        self._stop.set()
-        if self._ticker is not None:
-            self._ticker.join(timeout=5)
-        if self.bar is not None:
-            self.bar.close()
+        return f"{p.failed} failed | {running}{more} | ETA {format_seconds(eta)}"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -158,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _report(result) -> None:  # noqa: ANN001 - an EvalResult
+def _report(result: EvalResult) -> None:
     """Per-route lines, the skipped routes, then the Bench2Drive summary of the folder."""
     from b2d_data.cli.eval import summarise_eval_folder
 

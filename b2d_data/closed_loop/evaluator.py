@@ -55,7 +55,7 @@ from b2d_data.format import leaderboard as lb
 from b2d_data.format.errors import B2DFormatError
 from b2d_data.scenarios import statistics
 from b2d_data.scenarios.route_runner import MAX_TICKS
-from b2d_data.scenarios.route_xml import Route, read_routes, write_routes
+from b2d_data.scenarios.route_xml import Route, read_route_argument, write_routes
 
 log = logging.getLogger(__name__)
 
@@ -162,15 +162,10 @@ class EvalProgress:
 
 
 def _read_route_file(path: Path) -> list[Route]:
-    from b2d_data.data import shipped_or_given
-
-    resolved = shipped_or_given(path)
     try:
-        return read_routes(resolved)
+        return read_route_argument(path)
     except B2DFormatError as exc:
         raise EvalError(f"cannot read route file: {exc}") from None
-    except OSError as exc:
-        raise EvalError(f"cannot read route file {resolved}: {exc}") from None
 
 
 def _check_config(config: EvalConfig) -> None:
@@ -300,7 +295,7 @@ class _Pool:
         method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         self.context = multiprocessing.get_context(method)
         if method == "forkserver":
-            self.context.set_forkserver_preload(["b2d_data.closed_loop.route_process"])
+            self.context.set_forkserver_preload(["b2d_data.closed_loop.route_process", "b2d_data.sim.builtin.world"])
         self.reports = self.context.Queue()
         self.running: dict[str, tuple[Any, RouteTask, float]] = {}
 
@@ -390,7 +385,7 @@ def _run(config: EvalConfig, plan: EvalPlan, progress: Callable[[EvalProgress], 
     for skipped in plan.skipped:
         log.warning("route %s skipped: %s", skipped.route_id, skipped.reason)
     settings = RouteSettings(
-        out=out,
+        out=out.resolve(),
         agent=AgentSettings(path=config.agent.resolve(), config=config.agent_config, track=config.track,
                             setup_timeout=config.setup_timeout, step_timeout=config.step_timeout),
         routes_file=config.routes_file.resolve(), max_ticks=config.max_ticks, environ=tuple(sorted(os.environ.items())),

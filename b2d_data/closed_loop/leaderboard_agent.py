@@ -70,7 +70,7 @@ def load_agent_module(path: Path) -> ModuleType:
         sys.path.insert(0, folder)
     try:
         module = importlib.import_module(path.stem)
-    except Exception as exc:  # noqa: BLE001 - whatever the agent's imports raise, the user needs file and cause
+    except Exception as exc:
         raise AgentLoadError(f"cannot import agent file {path}: {type(exc).__name__}: {exc}") from exc
     if not callable(getattr(module, "get_entry_point", None)):
         raise AgentLoadError(f"agent file {path} has no get_entry_point() naming its agent class")
@@ -351,7 +351,7 @@ class LeaderboardAgent:
                 destroy = getattr(self._agent, "destroy", None)
                 if callable(destroy):
                     self._thread.call(destroy, timeout=self.settings.setup_timeout)
-        except Exception:  # noqa: BLE001 - the route's record is what matters now
+        except Exception:
             log.exception("the agent's destroy() failed")
         finally:
             self._thread.close()

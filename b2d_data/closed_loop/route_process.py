@@ -160,7 +160,7 @@ def run_route(task: RouteTask, settings: RouteSettings) -> RouteOutcome:
         timings = agent.timings
         outcome.timings = {"setup": round(timings.setup, 3), "warmup": round(timings.warmup, 3),
                            "agent": round(timings.steps, 3), "sensors": round(timings.sensors, 3)}  # fmt: skip
-    except Exception as exc:  # noqa: BLE001 - a route that cannot run is a record, as in the Leaderboard
+    except Exception as exc:
         log.exception("route %s: the simulation failed", task.key)
         outcome.detail = f"{type(exc).__name__}: {exc}"
         record = crash_record(task, statistics.SIMULATION_CRASHED_FAILURE, outcome.detail)

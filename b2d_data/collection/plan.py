@@ -217,16 +217,12 @@ def _materialise(town: TownSource, out: Path) -> TownSource:
 
 
 def _read_route_file(path: Path) -> list[Route]:
-    from b2d_data.data import shipped_or_given
-    from b2d_data.scenarios.route_xml import read_routes
+    from b2d_data.scenarios.route_xml import read_route_argument
 
-    path = shipped_or_given(path)  # a bare name such as bench2drive220.xml: the route file the package ships
     try:
-        return read_routes(path)
+        return read_route_argument(path)
     except B2DFormatError as exc:
         raise CollectError(f"cannot read route file: {exc}") from None
-    except OSError as exc:
-        raise CollectError(f"cannot read route file {path}: {exc}") from None
 
 
 def _file_plan(config: CollectConfig) -> CollectionPlan:

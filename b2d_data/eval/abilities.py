@@ -180,8 +180,11 @@ def _check_traffic_signs(
 def compute_abilities(
     records: Sequence[RouteRecord], routes: Sequence[Route], junctions: JunctionProvider | None = None
 ) -> AbilityResult:
-    """Ability success rates of ``records`` on ``routes`` (records are matched by XML route id)."""
-    by_id = {r.route_number: r for r in records}
+    """Ability success rates of ``records`` on ``routes`` (records are matched by XML route id; each repetition of
+    a route counts as one run of it)."""
+    by_id: dict[str, list[RouteRecord]] = {}
+    for r in records:
+        by_id.setdefault(r.route_number, []).append(r)
     successes = {a: 0 for a in ABILITIES}
     totals = {a: 0 for a in ABILITIES}
     in_xml = {a: 0 for a in ABILITIES}
@@ -194,20 +197,21 @@ def compute_abilities(
         abilities = abilities_of(scenario) if scenario else ()
         for ability in abilities:
             in_xml[ability] += 1
-        record = by_id.get(route.id)
-        if record is None:
+        runs = by_id.get(route.id)
+        if not runs:
             crashed.append((scenario, route.id))
             continue
-        success = record.success
-        for ability in abilities:
-            totals[ability] += 1
-            successes[ability] += int(success)
-        if Ability.TRAFFIC_SIGNS in abilities and not success:
-            check = _check_traffic_signs(route, scenario or "", record, junctions)
-            checks.append(check)
-            if check.credited:
-                successes[Ability.TRAFFIC_SIGNS] += 1
-                credited += 1
+        for record in runs:
+            success = record.success
+            for ability in abilities:
+                totals[ability] += 1
+                successes[ability] += int(success)
+            if Ability.TRAFFIC_SIGNS in abilities and not success:
+                check = _check_traffic_signs(route, scenario or "", record, junctions)
+                checks.append(check)
+                if check.credited:
+                    successes[Ability.TRAFFIC_SIGNS] += 1
+                    credited += 1
     scores = {
         a: AbilityScore(
             ability=a,

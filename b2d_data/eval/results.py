@@ -89,6 +89,11 @@ def default_name(argument: str | Path) -> str:
     return first.name if first.is_dir() else first.stem
 
 
+def _route_label(record: RouteRecord) -> str:
+    """The XML route id, with the repetition when it is not the first (``7``, ``7 rep 1``)."""
+    return record.route_number if record.repetition == 0 else f"{record.route_number} rep {record.repetition}"
+
+
 def load_result_set(
     files: Sequence[Path], name: str, strict: bool = False, skip_unreadable: bool = False
 ) -> ResultSet:
@@ -113,7 +118,8 @@ def load_result_set(
         sources.append(path)
         for position, record in enumerate(results.records):
             origin = f"{path}#{position}"
-            key = record.route_number
+            # One record per route repetition: RouteScenario_7_rep0 and _rep1 are two runs, not duplicates.
+            key = record.route_id
             occurrences.setdefault(key, []).append(f"{origin} ({record.route_id})")
             # Re-inserting moves nothing: the route keeps its first position, its value becomes the last record.
             kept[key] = (record, origin)
@@ -121,7 +127,7 @@ def load_result_set(
     if not sources:
         raise EvalInputError(files[0] if files else Path(name), "none of the files is Leaderboard result JSON")
     duplicates = [
-        Duplicate(route=key, occurrences=tuple(where), kept=kept[key][1])
+        Duplicate(route=_route_label(kept[key][0]), occurrences=tuple(where), kept=kept[key][1])
         for key, where in occurrences.items()
         if len(where) > 1
     ]

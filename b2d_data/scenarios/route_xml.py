@@ -203,6 +203,14 @@ def read_routes(path: str | Path) -> list[Route]:
     return routes
 
 
+def read_route_argument(path: str | Path) -> list[Route]:
+    """:func:`read_routes` of a route file named on a command line: a bare shipped name (``bench2drive220.xml``) that
+    does not exist here is the file the package ships."""
+    from b2d_data.data import shipped_or_given
+
+    return read_routes(shipped_or_given(Path(path)))
+
+
 def routes_by_id(routes: Iterable[Route]) -> dict[str, Route]:
     """Index routes by their id."""
     return {route.id: route for route in routes}

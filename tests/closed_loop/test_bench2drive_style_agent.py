@@ -39,7 +39,7 @@ def _metas(folder: Path) -> list[dict]:
 
 
 def test_the_route_completes_and_the_record_is_the_leaderboards(b2d_run):
-    out, save, result = b2d_run
+    _, save, result = b2d_run
     (record,) = result.records
     assert record.route_id == "RouteScenario_7_rep0"
     assert record.status == lb.STATUS_COMPLETED

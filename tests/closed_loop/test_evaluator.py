@@ -11,12 +11,13 @@ import time
 from pathlib import Path
 
 import pytest
-from .conftest import BEHAVIOUR_AGENT, short_routes
 
 from b2d_data.cli import eval as eval_cli
 from b2d_data.closed_loop import REFERENCE_AGENTS
 from b2d_data.closed_loop.evaluator import EvalConfig, EvalError, plan_evaluation, run_evaluation, task_seed
 from b2d_data.format import leaderboard as lb
+
+from .conftest import BEHAVIOUR_AGENT, short_routes
 
 
 def _records(out: Path) -> dict[str, dict]:
@@ -147,10 +148,10 @@ def _comparable(record: dict) -> dict:
 
 def test_the_same_seed_gives_the_same_records(tmp_path, b2d_data_dir):
     # route 24841 (ControlLoss, Town01): a scenario with random steering perturbations and background traffic
-    config = dict(agent=REFERENCE_AGENTS["expert"], routes_file=b2d_data_dir / "bench2drive220.xml",
-                  route_ids=("24841",), seed=5, workers=1)  # fmt: skip
+    config = {"agent": REFERENCE_AGENTS["expert"], "routes_file": b2d_data_dir / "bench2drive220.xml",
+              "route_ids": ("24841",), "seed": 5, "workers": 1}
     first = run_evaluation(EvalConfig(out=tmp_path / "a", **config))
-    second = run_evaluation(EvalConfig(out=tmp_path / "b", **config))
+    run_evaluation(EvalConfig(out=tmp_path / "b", **config))
     a = _records(tmp_path / "a")["RouteScenario_24841_rep0"]
     b = _records(tmp_path / "b")["RouteScenario_24841_rep0"]
     assert first.records[0].status.startswith(("Completed", "Perfect"))
@@ -175,7 +176,7 @@ def test_kill_9_then_resume_runs_every_route_exactly_once(tmp_path):
     driver.wait(timeout=10)
     killed_at = set(_records(out))
     assert "RouteScenario_3_rep0" not in killed_at
-    resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=120)
+    resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=120, check=False)
     assert resumed.returncode == 0, resumed.stderr
     records = _records(out)
     assert sorted(records) == ["RouteScenario_1_rep0", "RouteScenario_2_rep0", "RouteScenario_3_rep0"]
@@ -185,3 +186,38 @@ def test_kill_9_then_resume_runs_every_route_exactly_once(tmp_path):
     # route 1 finished before the kill and is not run again; the others finish once, after the resume
     assert sorted(finished) == ["RouteScenario_1_rep0", "RouteScenario_2_rep0", "RouteScenario_3_rep0"]
     assert json.loads((out / "results.json").read_text())["_checkpoint"]["progress"] == [3, 3]
+
+
+def test_every_sensor_type_reaches_the_agent_in_the_leaderboards_form(tmp_path, monkeypatch):
+    routes = short_routes(tmp_path / "routes.xml", ["1"])
+    monkeypatch.setenv("SAVE_PATH", str(tmp_path))
+    # the agent stops the route at step 4 on purpose: the sensors of four steps are all this test needs
+    result = run_evaluation(EvalConfig(agent=BEHAVIOUR_AGENT, agent_config="sensor=full,dump,raise_at=4",
+                                       routes_file=routes, out=tmp_path / "out"))  # fmt: skip
+    (record,) = result.records
+    assert record.status == "Failed - Agent crashed"
+    dump = json.loads((tmp_path / f"{record.save_name}_inputs.json").read_text())
+    inputs = dump["inputs"]
+    assert dump["timestamp"] == pytest.approx(0.2)  # the fourth step: four ticks of 0.05 s
+    assert len({entry["frame"] for entry in inputs.values()}) == 1  # every sensor's data is of this tick's frame
+    assert inputs["CAM"]["shape"] == [24, 32, 4] and inputs["CAM"]["dtype"] == "uint8"  # BGRA
+    lidar_n, lidar_c = inputs["LIDAR"]["shape"]
+    # half a turn per tick of 64 channels × round(600000 · 0.05 / 64) = 469 rays, 45 % dropped before casting,
+    # the sky above the horizon never hit: between a few thousand points and the 30016 rays
+    assert lidar_c == 4 and 3000 < lidar_n < 64 * 469 and inputs["LIDAR"]["dtype"] == "float32"
+    assert inputs["RADAR"]["shape"][1] == 4 and inputs["RADAR"]["dtype"] == "float32"
+    assert inputs["GPS"]["shape"] == [3] and inputs["GPS"]["dtype"] == "float64"
+    assert inputs["IMU"]["shape"] == [7] and inputs["IMU"]["dtype"] == "float64"
+    assert inputs["SPEED"]["type"] == "dict" and inputs["SPEED"]["keys"] == ["speed"]
+
+
+def test_a_route_over_its_tick_limit_ends_as_tick_runtime(tmp_path):
+    routes = short_routes(tmp_path / "routes.xml", ["1"])
+    # Bench2Drive stops a route after 4000 ticks; a limit of 30 ticks lets a standing agent reach it in 1.5 s of
+    # game time, long before the 60 s the blocked test needs
+    result = run_evaluation(EvalConfig(agent=BEHAVIOUR_AGENT, agent_config="stand", routes_file=routes,
+                                       out=tmp_path / "out", max_ticks=30))  # fmt: skip
+    (record,) = result.records
+    assert record.status == "Failed - TickRuntime"
+    # as Bench2Drive's scenario manager (tick_count > 4000), the tick after the limit ends the route: 31 ticks
+    assert record.meta.duration_game == pytest.approx(31 * 0.05)

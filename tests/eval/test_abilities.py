@@ -106,3 +106,15 @@ def test_vad_abilities_without_map_credit(b2d_data_dir):
     assert round(result.mean, 2) == 15.09
     # 90 failed Traffic_Signs routes: 14 ran a red light or stop sign, the other 76 need a map.
     assert len(result.traffic_sign_checks) == 90 and len(result.unchecked) == 76
+
+
+def test_each_repetition_of_a_route_counts_as_one_run(synthetic_run):
+    routes = read_routes(synthetic_run.routes_file)
+    accident = next(r for r in load_result_set(synthetic_run.files, "s").records if r.route_number == "101")
+    failed_rerun = read_results(synthetic_run.files[0]).records[0]  # any record object to copy the shape from
+    failed_rerun.route_id = "RouteScenario_101_rep1"
+    failed_rerun.status = "Failed - Agent got blocked"
+    # Overtaking holds only route 101 (Accident): rep0 succeeded, rep1 failed → 1 success in 2 runs = 50 %
+    result = compute_abilities([accident, failed_rerun], routes)
+    assert (result.scores[Ability.OVERTAKING].successes, result.scores[Ability.OVERTAKING].routes) == (1, 2)
+    assert result.scores[Ability.OVERTAKING].value == 50.0

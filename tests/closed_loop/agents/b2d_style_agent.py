@@ -6,6 +6,7 @@ files under ``$SAVE_PATH/<save_name>/`` when ``IS_BENCH2DRIVE`` is set, a ``carl
 Besides driving (a plain waypoint follower on the downsampled plan), it writes what it perceived each step to
 ``meta/NNNN.json`` so that a test can compare it with the truth (``get_metric_info``).
 """
+# ruff: noqa: UP018, UP031 - written in the style of the agents it stands for ("%04d.png" % step, float(0.0))
 
 import json
 import math

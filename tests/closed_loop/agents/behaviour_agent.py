@@ -3,13 +3,16 @@ for every route, or ``<route id>:<pairs>`` groups joined by ``;`` for one route 
 
 ``raise_at=N``: run_step raises at step N. ``setup_error``: setup raises. ``init_error``: the constructor raises.
 ``sleep_at=N:S``: step N sleeps S seconds. ``segfault_at=N``: the process kills itself with SIGSEGV at step N.
-``return_none``: run_step returns None. ``nan_steer``: steer is NaN. ``sensor=<kind>``: an invalid rig (``radius``:
+``return_none``: run_step returns None. ``sensor=full``: a camera, a LiDAR, a radar, GNSS, IMU and speedometer;
+``stand``: full brake, never moves.
+``dump``: at step 3 write what each sensor delivered to ``$SAVE_PATH/<save_name>_inputs.json``. ``nan_steer``: steer is NaN. ``sensor=<kind>``: an invalid rig (``radius``:
 a camera 5 m away; ``duplicate``: two sensors with one id; ``too_many``: three LiDARs; ``opendrive``: an OpenDRIVE
 map on the SENSORS track; ``unknown``: an unknown sensor type). Otherwise it drives straight at a gentle throttle.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -59,6 +62,15 @@ class BehaviourAgent(autonomous_agent.AutonomousAgent):
         camera = {"type": "sensor.camera.rgb", "x": 0.8, "y": 0.0, "z": 1.6, "roll": 0.0, "pitch": 0.0, "yaw": 0.0,
                   "width": 32, "height": 24, "fov": 70, "id": "CAM"}
         speed = {"type": "sensor.speedometer", "reading_frequency": 20, "id": "SPEED"}
+        if kind == "full":
+            lidar = {"type": "sensor.lidar.ray_cast", "x": 0.0, "y": 0.0, "z": 2.5, "roll": 0.0, "pitch": 0.0,
+                     "yaw": 0.0, "id": "LIDAR"}
+            radar = {"type": "sensor.other.radar", "x": 2.2, "y": 0.0, "z": 0.5, "roll": 0.0, "pitch": 0.0,
+                     "yaw": 0.0, "horizontal_fov": 30, "vertical_fov": 30, "id": "RADAR"}
+            gnss = {"type": "sensor.other.gnss", "x": -1.4, "y": 0.0, "z": 0.0, "id": "GPS"}
+            imu = {"type": "sensor.other.imu", "x": -1.4, "y": 0.0, "z": 0.0, "roll": 0.0, "pitch": 0.0, "yaw": 0.0,
+                   "id": "IMU"}
+            return [camera, lidar, radar, gnss, imu, speed]
         if kind == "radius":
             return [dict(camera, x=5.0), speed]
         if kind == "duplicate":
@@ -84,9 +96,21 @@ class BehaviourAgent(autonomous_agent.AutonomousAgent):
                 time.sleep(float(seconds))
         if options.get("segfault_at") == str(self.step):
             os.kill(os.getpid(), signal.SIGSEGV)
+        if "dump" in options and self.step == 3:
+            described = {
+                key: {"frame": frame, "type": type(data).__name__,
+                      "shape": list(getattr(data, "shape", ())), "dtype": str(getattr(data, "dtype", "")),
+                      "keys": sorted(data) if isinstance(data, dict) else None}
+                for key, (frame, data) in input_data.items()
+            }
+            with open(os.path.join(os.environ["SAVE_PATH"], f"{self.save_name}_inputs.json"), "w") as f:
+                json.dump({"timestamp": timestamp, "inputs": described}, f)
         if "return_none" in options:
             return None
         control = carla.VehicleControl()
-        control.throttle = 0.3 if input_data["SPEED"][1]["speed"] < 4.0 else 0.0
+        if "stand" in options:
+            control.brake = 1.0
+            return control
+        control.throttle = 0.75 if input_data["SPEED"][1]["speed"] < 5.0 else 0.0
         control.steer = float("nan") if "nan_steer" in options else 0.0
         return control

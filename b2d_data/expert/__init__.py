@@ -5,15 +5,10 @@
 (``b2d_data.sim.api``), the map and the format package.
 """
 
-from b2d_data.expert.config import (
-    BUILTIN_LINEAR_REGRESSION_PARAMS,
-    CARLA_LINEAR_REGRESSION_PARAMS,
-    ExpertConfig,
-)
+from b2d_data.expert.config import CARLA_LINEAR_REGRESSION_PARAMS, ExpertConfig
 from b2d_data.expert.expert import Expert
 from b2d_data.expert.state import CloseSignal, ExpertState, to_ego_frame
 
 __all__ = [
-    "BUILTIN_LINEAR_REGRESSION_PARAMS", "CARLA_LINEAR_REGRESSION_PARAMS", "CloseSignal", "Expert", "ExpertConfig",
-    "ExpertState", "to_ego_frame",
+    "CARLA_LINEAR_REGRESSION_PARAMS", "CloseSignal", "Expert", "ExpertConfig", "ExpertState", "to_ego_frame",
 ]  # fmt: skip

@@ -3,7 +3,8 @@
 The default is PDM-Lite's "linear regression" controller: full throttle for large speed errors, a brake when
 the ego is more than 3.1 % too fast, otherwise a six-feature polynomial in speed and speed error (km/h / 100).
 The PID variant exists for ablations. :func:`fit_linear_regression_params` re-fits the regression for other
-vehicle dynamics (used for :data:`b2d_data.expert.config.BUILTIN_LINEAR_REGRESSION_PARAMS`).
+vehicle dynamics (the builtin expert no longer needs it: its ego follows the CARLA fit the published parameters
+were made for; see :data:`b2d_data.expert.config.CARLA_LINEAR_REGRESSION_PARAMS`).
 """
 
 from __future__ import annotations

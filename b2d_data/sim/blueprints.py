@@ -16,6 +16,7 @@ import difflib
 import fnmatch
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from enum import IntEnum
 
 import numpy as np
 
@@ -28,6 +29,7 @@ __all__ = [
     "EGO_TYPE_ID",
     "Blueprint",
     "BicycleGeometry",
+    "LongitudinalLaw",
     "LongitudinalModel",
     "EGO_DYNAMICS",
     "UnknownBlueprintError",
@@ -79,9 +81,19 @@ class BicycleGeometry:
         return float(max(-1.0, min(1.0, wheel / self.steer_to_wheel)))
 
 
+class LongitudinalLaw(IntEnum):
+    """Which throttle/brake → acceleration law a vehicle follows (its value is a column of the simulator's rows)."""
+
+    #: drive = throttle · (max_accel − accel_falloff·|v|), resistance = brake · max_brake + rolling + drag · v².
+    LINEAR = 0
+    #: PDM-Lite's fitted polynomials of CARLA's Lincoln MKZ 2020 (expert-and-scenarios.md §1.6) for forward driving,
+    #: the linear law in reverse; see ``b2d_data/sim/builtin/kinematic_bicycle.py``.
+    CARLA_LINCOLN = 1
+
+
 @dataclass(frozen=True)
 class LongitudinalModel:
-    """Throttle/brake → acceleration of one vehicle class (SI units; see kinematic_bicycle.py for the law)."""
+    """Throttle/brake → acceleration of one vehicle class (SI units; see kinematic_bicycle.py for the laws)."""
 
     max_accel: float = 3.8  # m/s² at standstill, full throttle
     accel_falloff: float = 0.075  # m/s² lost per m/s of speed (engine power limit)
@@ -91,6 +103,7 @@ class LongitudinalModel:
     drag: float = 4.0e-4  # 1/m, aerodynamic term (× v²)
     max_reverse_speed: float = 8.0  # m/s
     max_steer_rate: float = 5.0  # normalised steer units per second
+    law: LongitudinalLaw = LongitudinalLaw.LINEAR
 
 
 CAR_DYNAMICS = LongitudinalModel()
@@ -101,16 +114,18 @@ MOTORCYCLE_DYNAMICS = LongitudinalModel(max_accel=5.0, accel_falloff=0.1, max_br
 BICYCLE_DYNAMICS = LongitudinalModel(
     max_accel=1.8, accel_falloff=0.2, max_brake=5.0, hand_brake=4.0, rolling=0.15, drag=1.0e-3, max_reverse_speed=1.5
 )
-#: The Lincoln MKZ 2020 (``vehicle.lincoln.mkz_2020``, the ego's car) accelerates like the CARLA Lincoln that
-#: PDM-Lite's ego forecast describes (expert-and-scenarios.md §1.6, ``ExpertConfig.ego_throttle_poly``): at full
-#: throttle that polynomial gives 7.607 − 0.2999·v + 0.003504·v² m/s² (v in m/s), twice the generic car's
-#: 3.55 m/s² from standstill.
-#: LB2.0's gaps assume such a car: a SignalizedJunctionLeftTurn flow at 9 m/s with 22 m headways leaves 2.0 s between
-#: one car's rear and the next one's front, and crossing its lane from a standstill (about 10 m) takes 2.5 s with
-#: the generic car but 1.8 s with this model (expert success on that scenario 12/20 → 19/20).
-#: Fit: least squares of ``max_accel − accel_falloff·v`` to that polynomial plus the generic rolling and drag terms
-#: over 0–15 m/s; it stays within 0.15 m/s² of the polynomial there. Braking is the generic car's.
-EGO_DYNAMICS = LongitudinalModel(max_accel=7.711, accel_falloff=0.2413)
+#: The Lincoln MKZ 2020 (``vehicle.lincoln.mkz_2020``, the ego's car) drives forward like the CARLA Lincoln that
+#: PDM-Lite's ego forecast describes (expert-and-scenarios.md §1.6, ``ExpertConfig.ego_throttle_poly`` and
+#: ``ego_brake_poly``): Leaderboard 2.0 agents' controllers (UniAD, VAD, TCP PIDs and throttle caps) are tuned on that
+#: car, so throttle 0.5 must give what it gives in CARLA (1.4 m/s² from rest, not the 3.6 a linear law gives).
+#: LB2.0's gaps assume it too: a SignalizedJunctionLeftTurn flow at 9 m/s with 22 m headways leaves 2.0 s to cross
+#: its lane from a standstill (about 10 m), 1.8 s at this car's full throttle, 2.5 s with the generic car's.
+#: ``kinematic_bicycle.py`` says where the law leaves the polynomials (throttle < 0.3, partial brake, above their
+#: fitted speeds). ``max_accel``/``accel_falloff`` serve the reverse gear only: the least-squares line of the
+#: full-throttle polynomial plus rolling and drag over 0–15 m/s, as before the polynomial law.
+#: ``rolling``/``drag`` are the generic car's coasting terms, which the law uses at throttle 0 where the polynomial
+#: at throttle 0.3 does not already decelerate harder.
+EGO_DYNAMICS = LongitudinalModel(max_accel=7.711, accel_falloff=0.2413, law=LongitudinalLaw.CARLA_LINCOLN)
 _DYNAMICS_BY_BASE_TYPE: dict[str, LongitudinalModel] = {
     "car": CAR_DYNAMICS,
     "van": VAN_DYNAMICS,

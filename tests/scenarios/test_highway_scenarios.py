@@ -262,15 +262,18 @@ def test_sequential_lane_change_clip_loads(tmp_path):
 
 
 def test_sequential_lane_change_expert_drives_on_when_the_new_lane_stays_a_queue(tmp_path):
-    """A route on which the expert, waiting at the route's change (PDM-Lite's way), stood beside a standing queue
-    until the route timed out (200 s, 72 % of the route): now it holds its lane after 5 s and gets through."""
+    """A route on which the expert, waiting at the route's change (PDM-Lite's way), stands beside a queue for 5 s and
+    then holds its lane: through in 37.1 s, against 58.8 s when it waits for a gap (stuck_time = ∞).
+
+    (Seed 1's route, used while the ego had a linear throttle law, timed out at 200 s without the hold; with the
+    CARLA Lincoln law the ego reaches that change when the new lane has a gap, so it no longer waits there.)"""
     from b2d_data import expert
     from b2d_data.collection.plan import route_seed
 
     town = TownSource(preset="all").materialise(tmp_path)
     world_map = load_map(town)
-    route = placement.make_routes(world_map, "SequentialLaneChange", 1, seed=1)[0]
-    seed = route_seed(1, f"all:{route.id}")  # as scripts/expert_success.py seeds it
+    route = placement.make_routes(world_map, "SequentialLaneChange", 1, seed=15)[0]
+    seed = route_seed(15, f"all:{route.id}")  # as scripts/expert_success.py seeds it
     dense = DenseRoute.from_route(world_map, route)
     driver = expert.Expert(world_map, list(dense), expert.ExpertConfig.for_builtin(), seed=seed)
     held = []
@@ -283,7 +286,7 @@ def test_sequential_lane_change_expert_drives_on_when_the_new_lane_stays_a_queue
                              record_every=1).run()  # fmt: skip
     assert any(held)  # the ego did wait 5 s at a change, and held its lane
     assert result.success, result.record.infractions
-    assert result.duration_game < 120.0
+    assert result.duration_game < 50.0
 
 
 # ------------------------------------------------------------------------------------------------ MergerIntoSlowTraffic

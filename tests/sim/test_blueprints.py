@@ -119,28 +119,33 @@ def _full_throttle(dynamics: blueprints.LongitudinalModel, speed: float, ticks: 
     return float(arr.x[0]), float(arr.speed[0])
 
 
-def test_ego_accelerates_like_the_expert_forecast_model():
-    # The ego (only the mkz_2020, not the 2017 background model) gets its own dynamics.
+def test_only_the_ego_lincoln_follows_the_carla_fit():
+    # The ego's blueprint (also drawn by background traffic) follows PDM-Lite's CARLA Lincoln polynomials; every
+    # other blueprint keeps the linear law that PDM-Lite's constant-acceleration forecast of other cars assumes.
     assert blueprints.find(EGO_TYPE_ID).dynamics is blueprints.EGO_DYNAMICS
+    assert blueprints.EGO_DYNAMICS.law is blueprints.LongitudinalLaw.CARLA_LINCOLN
     assert blueprints.find("vehicle.lincoln.mkz_2017").dynamics is blueprints.CAR_DYNAMICS
-    # PDM-Lite's ego throttle polynomial (§1.6) at throttle 1 from standstill: c2 + c3 = −0.380192912 + 1.74950069
-    # = 1.369308 km/h in one 0.05 s step = 7.607 m/s². The sim: (7.711 − 0.25 rolling) · 0.05 = 0.37305 m/s
-    # = 7.461 m/s², within the fit's 0.15 m/s².
-    _, v1 = _full_throttle(blueprints.EGO_DYNAMICS, 0.0, 1)
-    assert v1 == pytest.approx(0.37305, abs=1e-9)
-    assert abs(v1 / 0.05 - 1.369308 / 3.6 / 0.05) < 0.15
-    # At 10 m/s (36 km/h) the polynomial gains 0.8926 km/h per step = 4.959 m/s²; the sim gains
-    # 7.711 − 0.2413·10 − 0.25 − 4e-4·10² = 5.008 m/s².
-    _, v10 = _full_throttle(blueprints.EGO_DYNAMICS, 10.0, 1)
-    assert (v10 - 10.0) / 0.05 == pytest.approx(5.008, abs=1e-9)
-    assert abs((v10 - 10.0) / 0.05 - 0.8926 / 3.6 / 0.05) < 0.15
+    others = {bp.dynamics.law for t, bp in blueprints.BLUEPRINTS.items() if bp.dynamics is not None and t != EGO_TYPE_ID}
+    assert others == {blueprints.LongitudinalLaw.LINEAR}
+
+
+def test_the_simulator_uses_pdm_lites_lincoln_polynomials():
+    # The simulator keeps its own copy of the coefficients (sim must not import the expert): they must be PDM-Lite's.
+    from b2d_data.expert.config import ExpertConfig
+    from b2d_data.sim.builtin import kinematic_bicycle as kb
+
+    config = ExpertConfig()
+    assert kb.LINCOLN_THROTTLE_POLY == config.ego_throttle_poly
+    assert kb.LINCOLN_BRAKE_POLY == config.ego_brake_poly
+    assert kb.LINCOLN_THROTTLE_THRESHOLD == config.ego_throttle_threshold
+    assert kb.LINCOLN_POLY_DT == config.dt
 
 
 def test_ego_forecast_from_standstill_matches_the_simulated_ego():
     # The forecast a standing ego makes before crossing a junction: 40 steps at full throttle. Summing PDM-Lite's
     # polynomial step by step (1.3693 km/h in the first step, ≈ 91.3·(1 − 0.985^k) km/h after k) gives 12.530 m at
-    # 11.813 m/s after 2 s; the simulated ego (blueprints.EGO_DYNAMICS) drives 12.535 m, so the forecast is where the
-    # ego will be. (With the generic car's dynamics it drove 6.6 m and the forecast was 5.9 m too far ahead.)
+    # 11.813 m/s after 2 s; the simulated ego now follows the same polynomial, so it is there to the float rounding.
+    # (The linear law it had before drove 12.535 m; the generic car's 6.6 m.)
     from b2d_data.expert.config import ExpertConfig
     from b2d_data.expert.kinematic_bicycle import forecast_ego
 
@@ -150,5 +155,5 @@ def test_ego_forecast_from_standstill_matches_the_simulated_ego():
         x, _, _, v = forecast_ego(config, x, 0.0, 0.0, v, 0.0, 1.0, False)
     assert (x, v) == pytest.approx((12.530, 11.813), abs=1e-3)
     distance, speed = _full_throttle(blueprints.EGO_DYNAMICS, 0.0, 40)
-    assert distance == pytest.approx(x, abs=0.05)
-    assert speed == pytest.approx(v, abs=0.1)
+    assert distance == pytest.approx(x, abs=1e-9)
+    assert speed == pytest.approx(v, abs=1e-9)

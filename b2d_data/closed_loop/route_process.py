@@ -150,12 +150,14 @@ def run_route(task: RouteTask, settings: RouteSettings) -> RouteOutcome:
         runner = RouteRunner(
             sim, route, agent, seed=task.seed, record_every=1, on_frame=on_tick, on_start=agent.start,
             dense_route=dense, index=task.index, repetition=task.repetition, max_ticks=settings.max_ticks,
+            skip_failed_scenarios=True,  # the Leaderboard drives a route on without a scenario it cannot spawn
         )  # fmt: skip
         result = runner.run()
         record = result.record
         record.save_name = save_name
         record.town_name = world_map.name
-        outcome.detail = result.detail
+        outcome.detail = "; ".join([result.detail] * bool(result.detail)
+                                   + [f"skipped scenario {name}: {why}" for name, why in result.skipped_scenarios])
         outcome.ticks = result.ticks
         timings = agent.timings
         outcome.timings = {"setup": round(timings.setup, 3), "warmup": round(timings.warmup, 3),

@@ -379,8 +379,15 @@ class ScenarioManager:
     """
 
     def __init__(
-        self, ctx_factory: Callable[[ScenarioConfig], ScenarioContext], configs: Sequence[ScenarioConfig]
+        self,
+        ctx_factory: Callable[[ScenarioConfig], ScenarioContext],
+        configs: Sequence[ScenarioConfig],
+        skip_failed_builds: bool = False,
     ) -> None:
+        # The Leaderboard's build_scenarios skips a scenario whose actors cannot be spawned and drives the route on;
+        # collection (the default) stops instead, so that a clip named after a scenario always shows it.
+        self.skip_failed_builds = skip_failed_builds
+        self.skipped: list[tuple[str, str]] = []
         self._entries: list[_Entry] = []
         for config in configs:
             cls = scenario_class(config.type)
@@ -437,7 +444,16 @@ class ScenarioManager:
             scenario = e.scenario
             if e.state is _State.PENDING and scenario.distance_to_trigger(snapshot) < BUILD_DISTANCE:
                 log.info("%s: building", scenario.name)
-                scenario.build()
+                try:
+                    scenario.build()
+                except ScenarioError as exc:
+                    if not self.skip_failed_builds:
+                        raise
+                    log.warning("skipping scenario %s: it could not be built (%s)", scenario.name, exc)
+                    scenario.cleanup()
+                    self.skipped.append((scenario.name, str(exc)))
+                    e.state = _State.DONE
+                    continue
                 e.state = _State.BUILT
             if e.state is _State.BUILT and scenario.is_triggered(snapshot, route_index):
                 log.info("%s: triggered at t=%.2f s", scenario.name, snapshot.timestamp)

@@ -100,6 +100,8 @@ class ScenarioSetup:
     dense_route: DenseRoute
     ego_id: int
     rng: np.random.Generator
+    #: Leaderboard semantics: a scenario whose actors cannot be spawned is skipped and the route goes on.
+    skip_failed_builds: bool = False
 
 
 ScenarioManagerFactory = Callable[[ScenarioSetup], ScenarioManagerLike]
@@ -162,7 +164,7 @@ def default_scenario_manager(setup: ScenarioSetup) -> ScenarioManagerLike:
             log.warning("route %s: skipping scenario %r due to a setup error: %s", setup.route.id, config.name, exc)
             continue
         configs.append(config)
-    return ScenarioManager(context, configs)
+    return ScenarioManager(context, configs, skip_failed_builds=setup.skip_failed_builds)
 
 
 @dataclass(frozen=True)
@@ -200,6 +202,8 @@ class RouteResult:
     events: tuple[Infraction, ...] = field(default_factory=tuple)
     #: What went wrong when a scenario could not be set up (empty otherwise).
     detail: str = ""
+    #: ``(scenario name, reason)`` of scenarios skipped because they could not be built (``skip_failed_scenarios``).
+    skipped_scenarios: tuple[tuple[str, str], ...] = ()
 
 
 class RouteRunner:
@@ -219,6 +223,7 @@ class RouteRunner:
         index: int = 0,
         repetition: int = 0,
         on_start: Callable[[int], None] | None = None,
+        skip_failed_scenarios: bool = False,
     ) -> None:
         if record_every < 1:
             raise ValueError(f"record_every must be at least 1, got {record_every}")
@@ -233,6 +238,7 @@ class RouteRunner:
         self.index = index
         self.repetition = repetition
         self.on_start = on_start
+        self.skip_failed_scenarios = skip_failed_scenarios
         self.dense_route = dense_route if dense_route is not None else DenseRoute.from_route(sim.map, route)
 
     # ------------------------------------------------------------------------------------------------ set-up
@@ -299,7 +305,7 @@ class RouteRunner:
                     sim.background.start(ego_id, list(dense.waypoints))
                     background_started = True
                     manager = self.scenario_manager_factory(
-                        ScenarioSetup(sim, sim.map, self.route, dense, ego_id, rng)
+                        ScenarioSetup(sim, sim.map, self.route, dense, ego_id, rng, self.skip_failed_scenarios)
                     )
                     # Build (and trigger) what is due at the start before the first tick, so that the agent's
                     # first step already sees it (ParkingExit moves the ego into the parking lane at the start).
@@ -381,7 +387,8 @@ class RouteRunner:
         )
         return RouteResult(record=record, success=record.success, ticks=ticks, frames=frames,
                            duration_game=round(duration_game, lb.ROUND_DIGITS), criteria=result,
-                           stop_reason=stop_reason, events=result.events, detail=detail)
+                           stop_reason=stop_reason, events=result.events, detail=detail,
+                           skipped_scenarios=tuple(getattr(manager, "skipped", ())))  # fmt: skip
 
     def _cleanup(self, manager: ScenarioManagerLike, snapshot: Snapshot | None, ego_id: int,
                  background_started: bool) -> list[Any]:

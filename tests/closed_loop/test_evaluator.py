@@ -221,3 +221,15 @@ def test_a_route_over_its_tick_limit_ends_as_tick_runtime(tmp_path):
     assert record.status == "Failed - TickRuntime"
     # as Bench2Drive's scenario manager (tick_count > 4000), the tick after the limit ends the route: 31 ticks
     assert record.meta.duration_game == pytest.approx(31 * 0.05)
+
+
+def test_a_scenario_that_cannot_be_spawned_is_skipped_and_the_route_goes_on(tmp_path):
+    # bench2drive220 route 26944 (Town04): OppositeVehicleRunningRedLight at junction 1452, which has no traffic light
+    # in Town04's OpenDRIVE file (CARLA places those lights from its Unreal level). The Leaderboard's build_scenarios
+    # skips a scenario it cannot build; the expert then drives the plain route to its end.
+    result = run_evaluation(EvalConfig(agent=REFERENCE_AGENTS["expert"], routes_file=Path("bench2drive220.xml"),
+                                       route_ids=("26944",), out=tmp_path / "out"))  # fmt: skip
+    (record,) = result.records
+    assert record.status == lb.STATUS_COMPLETED
+    detail = record.extra["b2d_eval"]["detail"]
+    assert "skipped scenario OppositeVehicleRunningRedLight_1" in detail and "junction 1452" in detail

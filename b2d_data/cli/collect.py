@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -28,6 +26,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
+from b2d_data.cli.signals import restore_sigterm, stop_on_sigterm
 from b2d_data.cli.ticking_bar import TickingBar
 from b2d_data.format.version import DEFAULT_FORMAT, FormatVersion
 
@@ -201,25 +200,13 @@ def main(argv: list[str] | None = None) -> int:
     root.addHandler(handler)
     previous_level = root.level
     root.setLevel(level)
-    previous_term = _stop_on_sigterm()
+    previous_term = stop_on_sigterm()
     try:
         return _run(parser, args)
     finally:
         root.removeHandler(handler)
         root.setLevel(previous_level)
-        if previous_term is not None:
-            signal.signal(signal.SIGTERM, previous_term)
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
-def _stop_on_sigterm() -> object | None:
-    """Treat SIGTERM (batch schedulers) like Ctrl-C: the clip being written is dropped, the run log stays valid."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, _interrupt)
+        restore_sigterm(previous_term)
 
 
 class ProgressLine(TickingBar):

@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from b2d_data.cli.signals import restore_sigterm, stop_on_sigterm
 from b2d_data.cli.ticking_bar import TickingBar
 
 if TYPE_CHECKING:  # the evaluator loads only when an evaluation runs (a fast --help)
@@ -123,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
         setup_timeout=args.setup_timeout,
     )  # fmt: skip
     bar = _ProgressBar(enabled=not args.no_progress)
+    previous_term = stop_on_sigterm()
     try:
         result = run_evaluation(config, bar)
     except EvalError as exc:
@@ -133,6 +135,8 @@ def run(args: argparse.Namespace) -> int:
         bar.close()
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 130
+    finally:
+        restore_sigterm(previous_term)
     bar.close()
     _report(result)
     return 0

@@ -29,6 +29,8 @@ class AgentThread:
             queue.SimpleQueue()
         )
         self.stuck = False
+        #: A call is still running on the thread (its caller timed out or was interrupted while waiting).
+        self.busy = False
         self._thread = threading.Thread(target=self._serve, name=name, daemon=True)
         self._thread.start()
 
@@ -45,15 +47,17 @@ class AgentThread:
 
     def call(self, fn: Callable[[], T], timeout: float | None) -> T:
         """``fn()`` on the agent thread; its exception is re-raised here, :class:`AgentTimeout` after ``timeout`` s."""
-        if self.stuck:
-            raise AgentTimeout("the agent thread is still busy with a call that timed out")
+        if self.busy:
+            raise AgentTimeout("the agent thread is still busy with an earlier call")
         reply: queue.SimpleQueue[tuple[bool, Any]] = queue.SimpleQueue()
+        self.busy = True
         self._requests.put((fn, reply))
         try:
             ok, value = reply.get(timeout=timeout)
         except queue.Empty:
             self.stuck = True
             raise AgentTimeout(f"no answer within {timeout:g} s") from None
+        self.busy = False
         if not ok:
             raise value
         return value

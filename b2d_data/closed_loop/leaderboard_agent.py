@@ -347,7 +347,9 @@ class LeaderboardAgent:
     def close(self) -> None:
         """``destroy()`` the agent (unless its thread is stuck) and uninstall the bridge; never raises."""
         try:
-            if self._agent is not None and not self.stuck:
+            # a call still running (timed out, or interrupted by SIGTERM while the agent computes) keeps the thread:
+            # destroy() would only queue behind it
+            if self._agent is not None and not self._thread.busy:
                 destroy = getattr(self._agent, "destroy", None)
                 if callable(destroy):
                     self._thread.call(destroy, timeout=self.settings.setup_timeout)

@@ -212,7 +212,9 @@ def route_main(task: RouteTask, settings: RouteSettings, reports: Any, parent_pi
     ignore_interrupts()  # Ctrl-C goes to the evaluator, which stops the routes
     signal.signal(signal.SIGTERM, _leave)
     _redirect_output(log_path(settings.out, task.key))
-    logging.basicConfig(level=log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s", force=True)
+    # The route's log file is what a user reads when a route fails: it always holds the INFO lines.
+    logging.basicConfig(level=min(log_level, logging.INFO), format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+                        force=True)  # fmt: skip
     # The agent imports carla, leaderboard, srunner and agents: here they are the builtin simulator's stand-ins.
     sys.path.insert(0, str(SHIM_DIR))
     if settings.environ:

@@ -38,7 +38,7 @@ def test_a_call_over_its_limit_times_out_and_marks_the_thread_stuck():
         with pytest.raises(AgentTimeout):
             worker.call(lambda: release.wait(30), timeout=0.2)
         assert time.monotonic() - start < 5  # the caller is not held up by the stuck call
-        assert worker.stuck
+        assert worker.stuck and worker.busy
         with pytest.raises(AgentTimeout, match="still busy"):
             worker.call(lambda: None, timeout=1)
     finally:

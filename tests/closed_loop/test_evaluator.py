@@ -17,6 +17,7 @@ from b2d_data.closed_loop import REFERENCE_AGENTS
 from b2d_data.closed_loop.evaluator import EvalConfig, EvalError, plan_evaluation, run_evaluation, task_seed
 from b2d_data.format import leaderboard as lb
 
+from ..conftest import assert_all_exit, descendants, sigint_default
 from .conftest import BEHAVIOUR_AGENT, short_routes
 
 
@@ -233,3 +234,46 @@ def test_a_scenario_that_cannot_be_spawned_is_skipped_and_the_route_goes_on(tmp_
     assert record.status == lb.STATUS_COMPLETED
     detail = record.extra["b2d_eval"]["detail"]
     assert "skipped scenario OppositeVehicleRunningRedLight_1" in detail and "junction 1452" in detail
+
+
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
+def test_interrupting_ends_quietly_stops_every_route_process_and_keeps_the_log(tmp_path, how):
+    routes = short_routes(tmp_path / "routes.xml", ["1", "2"])
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "b2d_data.cli.eval", "run", "--agent", str(BEHAVIOUR_AGENT), "--agent-config",
+               "sleep_at=3:60", "--routes", str(routes), "--out", str(out), "--workers", "2", "--no-progress"]
+    stderr_path = tmp_path / "stderr.txt"
+    with open(stderr_path, "wb") as stderr:
+        # Ctrl-C reaches the terminal's whole process group; SIGTERM (a batch scheduler) only the driver
+        proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=stderr, start_new_session=True,
+                                preexec_fn=sigint_default)  # noqa: PLW1509 - the child starts no thread before exec
+        helpers: set[int] = set()
+        try:
+            deadline = time.monotonic() + 60
+            # both routes are inside their agents' 60 s sleep once both logs say the agent's sensors are mounted
+            while time.monotonic() < deadline and proc.poll() is None:
+                helpers |= descendants(proc.pid)
+                logs = list((out / "logs").glob("*.log")) if (out / "logs").is_dir() else []
+                if len(logs) == 2 and all("agent sensors" in p.read_text() for p in logs):
+                    break
+                time.sleep(0.1)
+            time.sleep(0.5)
+            helpers |= descendants(proc.pid)
+            assert proc.poll() is None, "the evaluation ended before it could be interrupted"
+            if how == "ctrl-c":
+                os.killpg(proc.pid, signal.SIGINT)
+            else:
+                os.kill(proc.pid, signal.SIGTERM)
+            assert proc.wait(timeout=30) == 130
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    err = stderr_path.read_text()
+    assert "Traceback" not in err, err
+    assert "interrupted: 0 of 2 routes have their record" in err and "--resume" in err
+    assert_all_exit(helpers)
+    events = [json.loads(line) for line in (out / "run_log.jsonl").read_text().splitlines()]
+    assert sorted(e["route_id"] for e in events if e["event"] == "interrupted") == ["RouteScenario_1_rep0",
+                                                                                    "RouteScenario_2_rep0"]
+    assert not (out / "records").exists() or not list((out / "records").glob("*.json"))

@@ -28,6 +28,8 @@ from b2d_data.format.names import ClipName
 from b2d_data.format.road_option import RoadOption
 from b2d_data.scenarios.route_xml import read_routes, write_routes
 
+from ..conftest import assert_all_exit, descendants, sigint_default
+
 N = 2
 TINY = ["--width", "64", "--height", "36", "--lidar-azimuth-steps", "90", "--encode-workers", "0", "--no-progress"]
 ROUTE_LENGTH = 22.0  # m of each generated route that the tests keep
@@ -281,31 +283,6 @@ def test_clip_dataset_returns_the_expert_assessment(collection):
         assert b["expert_feature"].shape == (6, 16, 16) and np.array_equal(b["expert_feature"], ef.unflatten(vec[:-2]))
 
 
-def _descendants(pid: int) -> set[int]:
-    """Every live process below ``pid`` (from /proc)."""
-    children: dict[int, list[int]] = {}
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except (OSError, IndexError):
-            continue
-        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    found: set[int] = set()
-    todo = [pid]
-    while todo:
-        for child in children.get(todo.pop(), []):
-            if child not in found:
-                found.add(child)
-                todo.append(child)
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
 
 def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeout: float = 240.0) -> set[int]:
     """Start b2d-collect, SIGKILL it once ``clips_first`` clips are complete and another one is being written.
@@ -323,14 +300,14 @@ def _kill_mid_collection(args: list[str], out: Path, clips_first: int = 1, timeo
     helpers: set[int] = set()
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            helpers |= _descendants(proc.pid)
+            helpers |= descendants(proc.pid)
             if out.is_dir() and len(_clips(out)) >= clips_first:
                 partial = [p for p in out.glob(".*.tmp-*") if p.is_dir() and len(list(p.glob("anno/*.json.gz"))) >= 3]
                 if partial:
                     break
             time.sleep(0.05)
         assert proc.poll() is None, "the collection ended before it could be killed"
-        helpers |= _descendants(proc.pid)
+        helpers |= descendants(proc.pid)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
     finally:
@@ -352,7 +329,7 @@ def test_kill_9_then_resume_gives_exactly_n_clips_with_the_same_annotations(coll
     before = rl.read_run_log(out / rl.LOG_FILE)
     assert len(rl.interrupted_routes(before)) == 1
     killed_route = rl.interrupted_routes(before)[0]
-    _assert_all_exit(helpers)
+    assert_all_exit(helpers)
 
     assert main(args) == 2  # a used folder needs --resume
     capsys.readouterr()
@@ -522,16 +499,16 @@ def test_interrupting_prints_no_traceback_and_records_the_routes(collection, sho
     stderr_path = tmp_path / "stderr.txt"
     with open(stderr_path, "wb") as stderr:
         proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], stdout=subprocess.DEVNULL,
-                                stderr=stderr, start_new_session=True, preexec_fn=_sigint_default)  # fmt: skip
+                                stderr=stderr, start_new_session=True, preexec_fn=sigint_default)  # fmt: skip
         helpers: set[int] = set()
         try:
             deadline = time.monotonic() + 240
             while time.monotonic() < deadline and proc.poll() is None:
-                helpers |= _descendants(proc.pid)
+                helpers |= descendants(proc.pid)
                 if [p for p in out.glob(".*.tmp-*") if p.is_dir() and len(list(p.glob("anno/*.json.gz"))) >= 3]:
                     break
                 time.sleep(0.05)
-            helpers |= _descendants(proc.pid)
+            helpers |= descendants(proc.pid)
             assert proc.poll() is None, "the collection ended before it could be interrupted"
             if ctrl_c:
                 os.killpg(proc.pid, signal.SIGINT)
@@ -545,25 +522,12 @@ def test_interrupting_prints_no_traceback_and_records_the_routes(collection, sho
     err = stderr_path.read_text()
     assert "Traceback" not in err and "leaked semaphore" not in err, err
     assert err.strip().splitlines()[-1] == "b2d-collect: interrupted; run the same command with --resume to finish"
-    _assert_all_exit(helpers)
+    assert_all_exit(helpers)
     records = rl.read_run_log(out / rl.LOG_FILE)
     interrupted = [r["route_id"] for r in records if r["event"] == rl.EVENT_INTERRUPTED]
     assert interrupted and sorted(interrupted) == sorted(rl.interrupted_routes(records))
     assert all(r["detected"] == "on interrupt" for r in records if r["event"] == rl.EVENT_INTERRUPTED)
 
-
-def _sigint_default() -> None:
-    """In the child: Ctrl-C as from a terminal. A shell starts background jobs with SIGINT ignored (a CI script run
-    with ``&``), and Python started so never turns SIGINT into KeyboardInterrupt: the interrupt would be lost."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-def _assert_all_exit(pids: set[int], timeout: float = 10.0) -> None:
-    assert pids, "the collection started no helper process"
-    deadline = time.monotonic() + timeout
-    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not [p for p in pids if _alive(p)], "helper processes outlived the killed collection"
 
 
 def test_kill_9_with_worker_processes_leaves_no_orphan_and_resumes(short_routes, tmp_path):
@@ -580,13 +544,13 @@ def test_kill_9_with_worker_processes_leaves_no_orphan_and_resumes(short_routes,
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and proc.poll() is None:
-            helpers |= _descendants(proc.pid)
+            helpers |= descendants(proc.pid)
             records = rl.read_run_log(out / rl.LOG_FILE)
             if len([r for r in records if r.get("event") == "start"]) >= 2 and len(helpers) >= 3:
                 break
             time.sleep(0.05)
         time.sleep(1.0)  # both workers are inside their routes now
-        helpers |= _descendants(proc.pid)
+        helpers |= descendants(proc.pid)
         assert proc.poll() is None, "the collection ended before it could be killed"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
@@ -595,7 +559,7 @@ def test_kill_9_with_worker_processes_leaves_no_orphan_and_resumes(short_routes,
             proc.kill()
             proc.wait()
     assert not rl.final_records(rl.read_run_log(out / rl.LOG_FILE)), "killed too late: a route had finished"
-    _assert_all_exit(helpers)
+    assert_all_exit(helpers)
     assert main([*args, "--resume"]) == 0
     records = rl.read_run_log(out / rl.LOG_FILE)
     finals = rl.final_records(records)

@@ -761,11 +761,15 @@ LAYOUTS: dict[str, Layout] = {
     "VanillaNonSignalizedTurn": Layout(
         "unsignalized_junction", "an unsignalised junction where the route turns", turns=("left", "right"),
         signalized=False, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
-    # A shorter approach than the other Vanilla turns: the ego, starting from rest, reaches the stop line within
-    # the 5 s of green instead of arriving just as every light turns red (no yellow in between, too close to stop).
+    # bench2drive220's geometry (routes 25968 and 25975 on Town07, measured on the dense route: the route starts
+    # 9.8–10.2 m before the junction, the trigger 7.0 m after the start, 2.8–3.2 m before the junction): the route
+    # starts 10 m before the junction and the trigger is the keypoint 2 or 4 m before it, so the ego, starting from
+    # rest, meets the 5 s of green at the stop line. With the trigger 14–19 m before the junction (approach 16–22 m)
+    # an ego that stopped for crossing cars on its way could still have its tail over the line when all lights
+    # turned red (3 of 20 routes).
     "VanillaSignalizedTurnEncounterGreenLight": Layout(
         "signalized_junction", "a signalised junction where the route turns", turns=("left", "right"),
-        signalized=True, approach=(16.0, 22.0), departure=(24.0, 30.0), trigger_offset=(3.0, 5.0)),
+        signalized=True, approach=(9.0, 10.0), departure=(24.0, 30.0), trigger_offset=(6.0, 8.0)),
     "T_Junction": Layout(
         "t_junction", "a junction of three roads that the route crosses", turns=("left", "right", "straight"),
         junction_extra=_three_arms, approach=(30.0, 38.0), departure=(22.0, 30.0), trigger_offset=(20.0, 26.0)),

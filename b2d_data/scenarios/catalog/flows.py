@@ -57,7 +57,8 @@ class ActorFlow:
     ``initial_actors`` pre-populates the path at the start, as LB2.0's ``ActorFlow(..., initial_actors=True)``.
     ``lateral_offset`` (m, right positive) makes the lane-following vehicles drive beside the lane centre;
     ``lateral_margin`` widens their swept path when they look for vehicles to stop for; ``blueprint_ids`` replaces
-    the background cars the vehicles are drawn from (e.g. bicycles for a BicycleFlow).
+    the background cars the vehicles are drawn from (e.g. bicycles for a BicycleFlow). ``hero_clearance`` (m; None,
+    the default and LB2.0's rule, never waits) holds the next vehicle back while the ego is that close to the source.
     """
 
     def __init__(
@@ -73,6 +74,7 @@ class ActorFlow:
         lateral_offset: float = 0.0,
         lateral_margin: float = 0.3,
         blueprint_ids: Sequence[str] | None = None,
+        hero_clearance: float | None = None,
     ) -> None:
         if len(path) < 2:
             raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
@@ -86,6 +88,7 @@ class ActorFlow:
         self.constant_velocity = constant_velocity
         self.lateral_offset = float(lateral_offset)
         self.lateral_margin = float(lateral_margin)
+        self.hero_clearance = hero_clearance
         self.vehicles: list[_FlowVehicle] = []
         self._cars = list(blueprint_ids) if blueprint_ids is not None else blueprints.background_car_ids()
         if not self._cars:
@@ -181,9 +184,19 @@ class ActorFlow:
                 return  # spawned this tick
             if last is not None and last.location.distance_2d(source) < self._gap:
                 return
+        if self._hero_at_source(snapshot):
+            return
         if self._spawn_at(0) is not None:
             self._last_spawned = self.vehicles[-1].actor_id
             self._gap = self._draw_gap()
+
+    def _hero_at_source(self, snapshot: Snapshot) -> bool:
+        """Whether ``hero_clearance`` holds the next vehicle back: the ego is within it of the source (2D)."""
+        if self.hero_clearance is None:
+            return False
+        hero = snapshot.hero()
+        source = self.waypoints[0].transform.location
+        return hero is not None and hero.location.distance_2d(source) < self.hero_clearance
 
     def _destroy(self, veh: _FlowVehicle) -> None:
         if veh in self.vehicles:

@@ -5,7 +5,8 @@ every 40 m at the ego lane's speed limit) drives toward the trigger, offset by `
 m, so that it reaches ≈ ``offset`` m past the centre line into the ego's lane. Cones stand on the opposite lane
 every 5 m over ``distance / 2`` m, starting 15 m from the source toward the ego, 0.4 lane widths toward that lane's
 outer edge (the reason the flow drives so far left). The ego's lane and the normal opposite traffic are taken out
-of the background while the scenario runs; it ends when the ego has passed the source point, or after 240 s.
+of the background while the scenario runs; it ends when the ego is in front of the source point and within 50 m
+of it, or after 240 s. No flow car appears while the ego is within 15 m of the source (not in LB2.0, see start()).
 """
 
 from __future__ import annotations
@@ -36,6 +37,10 @@ class InvadingTurn(Scenario):
     flow_gap = 40.0
     #: The flow's offset keeps this much of the car inside its own lane before ``offset`` is added (LB2.0).
     edge_margin = 0.7
+    #: Not in LB2.0: no flow car appears at the source while the ego is within this distance (m) of it; see start().
+    hero_clearance = 15.0
+    #: LB2.0 ends the scenario once the ego is in front of the source point and within this distance (m) of it.
+    check_distance = 50.0
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -88,6 +93,16 @@ class InvadingTurn(Scenario):
 
         The flow cars stop only for a box inside their swept path (no margin): the ego keeping right leaves them
         a few tenths of a metre, and with a margin each would stop before it and wait for ever.
+
+        A departure from LB2.0's InvadingActorFlow, which spawns whenever its last car is 40 m from the source:
+        ours holds the next car back while the ego is within ``hero_clearance`` of the source. Our cars appear at
+        their offset, half in the ego's lane, where the expert's shift (it ends 10 m after the last cone, 5 m
+        before the source) no longer keeps the ego clear of them; one spawned 5–7 m in front of an ego arriving at
+        10 m/s was hit at once (routes 160003 / 160004 on Town101). LB2.0's car appears on its lane centre and its
+        BasicAgent steers it out; tried here, our car steering out at full lock while it crawls off the source
+        made the expert stop for it and then meet it at walking pace: 11 of 20 routes instead of 17. 15 m: at
+        10 m/s (72 % of 50 km/h) the ego needs 4.7 m and two ticks (1 m) to stop, the two cars touch at about 5 m
+        centre to centre, and the new car rolls toward the ego meanwhile.
         """
         bg = self.ctx.sim.background
         bg.remove_road_lane(self.trigger_waypoint)
@@ -96,17 +111,19 @@ class InvadingTurn(Scenario):
         limit = self.ctx.map.speed_limit(self.trigger_waypoint)
         self._flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.flow_waypoints, limit / 3.6,
                                (self.flow_gap, self.flow_gap), constant_velocity=False, lateral_offset=self.lateral,
-                               lateral_margin=0.0)  # fmt: skip
+                               lateral_margin=0.0, hero_clearance=self.hero_clearance)  # fmt: skip
         self._flow.start()
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS once the ego has passed the flow's source point."""
+        """Drive the flow; SUCCESS once the ego is in front of the flow's source point and within 50 m of it."""
         if self._flow is not None:
             self._flow.update(snapshot)
         ego = self.ctx.ego(snapshot)
         if ego is None:
             return ScenarioStatus.RUNNING
-        return ScenarioStatus.SUCCESS if is_in_front(ego, self.source_reference.transform) else ScenarioStatus.RUNNING
+        reference = self.source_reference.transform
+        near = ego.location.distance(reference.location) < self.check_distance  # 3D, as WaitUntilInFrontPosition
+        return ScenarioStatus.SUCCESS if near and is_in_front(ego, reference) else ScenarioStatus.RUNNING
 
     def on_end(self) -> None:
         """Stop the flow, give the lanes back to the background."""

@@ -2,10 +2,12 @@
 
 VanillaSignalizedTurnEncounterRedLight: every light of the junction red for 5 s, then the ego's light green and
 the others red until the end. VanillaSignalizedTurnEncounterGreenLight: the ego's light green (others red) for 5 s,
-then every light red for 5 s, then the normal cycle. VanillaNonSignalizedTurnEncounterStopsign: nothing is forced;
-the route's stop sign is judged by the route criteria. VanillaNonSignalizedTurn: a turn at an unsignalised junction
-with background traffic only. All end 10 m after the ego left the junction; they carry a ScenarioTimeoutTest that
-never fires (there is no ScenarioTimeout behaviour).
+then every light red for 5 s; the scenario ends with that sequence (Bench2Drive's parallel succeeds on its first
+child) unless the ego has left the junction before. Either way, at its end every light forced goes back to the state
+it had at the trigger, as TrafficLightFreezer.terminate restores it (Bench2Drive's ``vanilla_turn.py``).
+VanillaNonSignalizedTurnEncounterStopsign: nothing is forced; the route's stop sign is judged by the route criteria.
+VanillaNonSignalizedTurn: a turn at an unsignalised junction with background traffic only. All end 10 m after the
+ego left the junction; they carry a ScenarioTimeoutTest that never fires (there is no ScenarioTimeout behaviour).
 """
 
 from __future__ import annotations
@@ -41,11 +43,22 @@ class VanillaJunctionTurn(JunctionScenario):
 
 
 class ScheduledLightsTurn(VanillaJunctionTurn):
-    """A turn at a signalised junction whose lights follow a fixed schedule from the trigger on."""
+    """A turn at a signalised junction whose lights follow a fixed schedule from the trigger on.
+
+    Bench2Drive runs the schedule as a sequence of TrafficLightFreezers in parallel with the end condition; the
+    scenario ends with whichever finishes first (a schedule whose phases are all timed ends it), and the freezer
+    running then restores the state each light had when it began, which is the state at the trigger (an earlier
+    freezer restored it before the next one froze it again). Our lights have no per-light timings to restore: the
+    junction's cycle ran on meanwhile, and each light keeps its restored state until that cycle next changes stage.
+    """
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.lights: LightSchedule | None = None
+        #: Each light's state at the trigger, restored at the end.
+        self.states_at_trigger: dict[int, TrafficLightState] = {}
+        self._schedule_start: float | None = None
+        self._restored = False
 
     def phases(self, lights: list[TrafficLightInfo]) -> list[tuple[dict[int, TrafficLightState], float | None]]:
         """The schedule's (states, duration) phases for the junction's lights (each subclass gives its own)."""
@@ -56,20 +69,43 @@ class ScheduledLightsTurn(VanillaJunctionTurn):
         self.require_lights(self.ctx.sim.snapshot())
 
     def start(self, snapshot: Snapshot) -> None:
-        """Start the light schedule."""
-        self.lights = LightSchedule(self.ctx.sim, self.phases(self.require_lights(snapshot)))
+        """Remember the lights' states, start the light schedule."""
+        lights = self.require_lights(snapshot)
+        self.states_at_trigger = {info.id: info.state for info in lights}
+        self.lights = LightSchedule(self.ctx.sim, self.phases(lights))
+        self._schedule_start = snapshot.timestamp
         self.lights.update(snapshot)
 
+    def schedule_length(self) -> float | None:
+        """Seconds from the trigger to the end of the schedule (None: its last phase lasts until the end)."""
+        if self.lights is None or any(duration is None for _, duration in self.lights.phases):
+            return None
+        return sum(duration for _, duration in self.lights.phases if duration is not None)
+
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Advance the lights; SUCCESS 10 m after the junction."""
+        """Advance the lights; SUCCESS 10 m after the junction or when a timed schedule is over."""
         if self.lights is not None:
             self.lights.update(snapshot)
+        length = self.schedule_length()
+        start = self._schedule_start
+        # the same test LightSchedule uses to leave its last phase, so both happen at this tick
+        if length is not None and start is not None and snapshot.timestamp - start >= length - 1e-9:
+            self._restore()
+            return ScenarioStatus.SUCCESS
         return super().update(snapshot)
 
+    def _restore(self) -> None:
+        """Release the lights, each in its state at the trigger until its junction's cycle next changes stage."""
+        if self.lights is None or self._restored:
+            return
+        self._restored = True
+        self.lights.release()
+        for light_id, state in sorted(self.states_at_trigger.items()):
+            self.ctx.sim.set_traffic_light_state(light_id, state, freeze=False)
+
     def on_end(self) -> None:
-        """Release the lights."""
-        if self.lights is not None:
-            self.lights.release()
+        """Give the lights back as TrafficLightFreezer.terminate does."""
+        self._restore()
 
 
 @register
@@ -87,14 +123,14 @@ class VanillaSignalizedTurnEncounterRedLight(ScheduledLightsTurn):
 
 @register
 class VanillaSignalizedTurnEncounterGreenLight(ScheduledLightsTurn):
-    """The ego's light green for 5 s, then all red for 5 s, then the normal cycle (§2.2 #41)."""
+    """The ego's light green for 5 s, then all red for 5 s, then the lights as at the trigger (§2.2 #41)."""
 
     xml_type = "VanillaSignalizedTurnEncounterGreenLight"
     green_time = 5.0
     red_time = 5.0
 
     def phases(self, lights: list[TrafficLightInfo]) -> list[tuple[dict[int, TrafficLightState], float | None]]:
-        """The ego's light green for 5 s, all red for 5 s; the schedule then releases the lights."""
+        """The ego's light green for 5 s, then all red for 5 s; the scenario ends with the second phase."""
         ego_green = light_states(lights, lights_of_lane(lights, self.ego_entry))
         return [(ego_green, self.green_time), (light_states(lights, []), self.red_time)]
 

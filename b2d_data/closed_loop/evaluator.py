@@ -28,7 +28,7 @@ import signal
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -51,6 +51,7 @@ from b2d_data.collection.corpus import corpus_lock
 from b2d_data.collection.plan import route_seed
 from b2d_data.collection.progress import FrameReport, ProgressState
 from b2d_data.collection.towns import TownError, TownSource, route_town
+from b2d_data.data import shipped_or_given
 from b2d_data.format import leaderboard as lb
 from b2d_data.format.errors import B2DFormatError
 from b2d_data.scenarios import statistics
@@ -360,6 +361,8 @@ def run_evaluation(
     config: EvalConfig, progress: Callable[[EvalProgress], None] | None = None
 ) -> EvalResult:
     """Run every task of the plan that has no record yet and write the result files (see the module docstring)."""
+    # a bare shipped name (bench2drive220.xml) is the package's file: eval.json and the agents' ROUTES say which
+    config = replace(config, routes_file=shipped_or_given(config.routes_file))
     plan = plan_evaluation(config)
     out = config.out
     with corpus_lock(out, LOCK_FILE, "b2d-eval run", EvalError):

@@ -277,3 +277,15 @@ def test_interrupting_ends_quietly_stops_every_route_process_and_keeps_the_log(t
     assert sorted(e["route_id"] for e in events if e["event"] == "interrupted") == ["RouteScenario_1_rep0",
                                                                                     "RouteScenario_2_rep0"]
     assert not (out / "records").exists() or not list((out / "records").glob("*.json"))
+
+
+def test_repetitions_are_separate_runs_with_their_own_records(tmp_path):
+    routes = short_routes(tmp_path / "routes.xml", ["1"])
+    out = tmp_path / "out"
+    result = run_evaluation(EvalConfig(agent=BEHAVIOUR_AGENT, routes_file=routes, out=out, repetitions=2, workers=2))
+    assert sorted(r.route_id for r in result.records) == ["RouteScenario_1_rep0", "RouteScenario_1_rep1"]
+    target = tmp_path / "summary.json"
+    assert eval_cli.main(["summary", str(out), "--out", str(target)]) == 0
+    summary = json.loads(target.read_text())["result_sets"][0]
+    # one route × two repetitions: two records over two expected runs, neither dropped as a duplicate
+    assert summary["records"] == 2 and summary["expected_routes"] == 2 and summary["duplicates"] == []

@@ -2,7 +2,8 @@
 
 Examples::
 
-    b2d-eval run --agent examples/route_follower_agent.py --routes bench2drive220.xml --out eval/follower
+    b2d-eval run --agent expert --routes bench2drive220.xml --out eval/expert          # the privileged expert
+    b2d-eval run --agent examples/sensor_agent.py --routes bench2drive220.xml --out eval/sensor_agent
     IS_BENCH2DRIVE=True SAVE_PATH=eval/vad/save b2d-eval run --agent Bench2DriveZoo/team_code/vad_b2d_agent.py \\
         --agent-config Bench2DriveZoo/adzoo/vad/configs/VAD/VAD_base_e2e_b2d.py+ckpts/vad_b2d_base.pth \\
         --routes bench2drive220.xml --out eval/vad

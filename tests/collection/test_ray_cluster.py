@@ -19,7 +19,8 @@ import pytest
 
 from b2d_data.collection import run_log as rl
 
-from .test_collect import N, _args, _clips, _descendants, _temporaries, short_routes  # noqa: F401 - fixture
+from ..conftest import descendants
+from .test_collect import N, _args, _clips, _temporaries, short_routes  # noqa: F401 - fixture
 
 pytest.importorskip("ray")
 
@@ -47,7 +48,7 @@ def _job_workers(head: int) -> list[int]:
     """Worker processes of our cluster (below its head process) running a route right now."""
     return sorted(
         pid
-        for pid in _descendants(head)
+        for pid in descendants(head)
         if _cmdline(pid).startswith(WORKER_TITLE) and JOB_FUNCTION in _cmdline(pid).split(b"\0")[0]
     )
 
@@ -74,7 +75,7 @@ def ray_cluster(tmp_path):
         while time.monotonic() < deadline:
             if head.poll() is not None:
                 pytest.fail(f"ray start failed:\n{head.stdout.read().decode(errors='replace')[-3000:]}")
-            if any(b"raylet" in _cmdline(p) for p in _descendants(head.pid)):
+            if any(b"raylet" in _cmdline(p) for p in descendants(head.pid)):
                 break
             time.sleep(0.5)
         else:
@@ -82,7 +83,7 @@ def ray_cluster(tmp_path):
         yield f"127.0.0.1:{port}", head.pid
     finally:
         # Stop exactly what this cluster started: every process below the head, then the head's process group.
-        for pid in _descendants(head.pid):
+        for pid in descendants(head.pid):
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:

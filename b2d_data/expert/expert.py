@@ -177,7 +177,10 @@ class Expert:
         planar = math.hypot(ego.velocity.x, ego.velocity.y)
         self.blocked_ticks = self.blocked_ticks + 1 if planar < cfg.blocked_speed else 0
         if self.blocked_ticks >= cfg.max_blocked_ticks:
-            # nudge forward once so that the leaderboard's agent-blocked test never fires
+            # PDM-Lite's own anti-block rule (its autopilot, "apply throttle if the vehicle is blocked for too long",
+            # §1.3 step 6), kept as is: full throttle every tick from 170 ticks below 0.1 m/s on until the ego
+            # moves. PDM-Lite wrote it against the agent-blocked test, which LB2.0 pauses while a scenario's
+            # ScenarioTimeout runs (framework.py); it fires there too in CARLA, so it does here.
             throttle, applied_brake = 1.0, 0.0
         control = VehicleControl(throttle=float(throttle), steer=applied_steer, brake=applied_brake)
 

@@ -233,6 +233,10 @@ class ConstantVelocityAgent:
     short of it, or ``crossing_stop_gap`` m short of a vehicle crossing its path, braking up to ``max_brake`` ×
     8 m/s²) and, once the path is clear, speeds up again at ``resume_accel``. ``done`` becomes True at the end of
     the path (the vehicle then brakes and stays).
+
+    ``match_leader`` gives CARLA 0.9.15's own hazard rule instead: a vehicle in the path within
+    ``base_threshold + speed [m/s]`` metres makes the forced velocity jump to the leader's velocity along the
+    actor's heading at once (``ConstantVelocityAgent.run_step`` sets ``hazard_speed`` as the constant velocity).
     """
 
     def __init__(
@@ -250,8 +254,10 @@ class ConstantVelocityAgent:
         resume_accel: float = 3.0,
         crossing_stop_gap: float = 2.0,
         lateral_margin: float = 0.3,
+        match_leader: bool = False,
     ) -> None:
         self.sim = sim
+        self.match_leader = match_leader
         self.crossing_stop_gap = crossing_stop_gap
         self.lateral_margin = lateral_margin
         self.predict = predict
@@ -303,7 +309,19 @@ class ConstantVelocityAgent:
         steer = pure_pursuit_steer(actor, self.path, s_now, lookahead)
         allowed = self.speed
         self.blocked_by = None
-        if self.detect_vehicles:
+        hazard_speed: float | None = None
+        if self.detect_vehicles and self.match_leader:
+            threshold = self.base_threshold + actor.speed()
+            gap, other = leader_gap(
+                snapshot, actor, self.path, s_now, threshold, self.ignore, self.lateral_margin, self.predict
+            )
+            if gap < threshold and other is not None:
+                self.blocked_by = other
+                fx, fy = _forward(actor)
+                leader = snapshot.actors[other].velocity
+                hazard_speed = max(0.0, fx * leader.x + fy * leader.y)
+                allowed = min(allowed, hazard_speed)
+        elif self.detect_vehicles:
             threshold = self.base_threshold + self.speed_ratio * max(actor.speed(), self.speed) * 3.6
             gap, other = leader_gap(
                 snapshot, actor, self.path, s_now, threshold, self.ignore, self.lateral_margin, self.predict
@@ -315,7 +333,9 @@ class ConstantVelocityAgent:
                 stop_gap = self.crossing_stop_gap if crossing else 2.0
                 allowed = min(allowed, allowed_speed(gap, 0.5 * self.max_brake * 8.0, stop_gap))
         previous = self._command if self._command is not None else self.speed
-        command, control = speed_control(previous, allowed, self.resume_accel, self.max_brake * 8.0)
+        # CARLA's hazard rule has no deceleration bound: the constant velocity is simply reset to the leader's
+        decel = math.inf if hazard_speed is not None else self.max_brake * 8.0
+        command, control = speed_control(previous, allowed, self.resume_accel, decel)
         self._command = command
         control = VehicleControl(throttle=control.throttle, steer=steer, brake=control.brake)
         self.sim.apply_control(self.actor_id, control)

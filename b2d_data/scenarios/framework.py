@@ -6,7 +6,8 @@ Life of a scenario on a route, driven by :class:`ScenarioManager` once per tick:
 2. **built** until :meth:`Scenario.is_triggered` (default: the ego's route point within 2 m of the trigger point),
    then :meth:`Scenario.start` (background-traffic hooks, light freezing ...);
 3. **running**: :meth:`Scenario.update` every tick until it returns SUCCESS or FAILURE, or the scenario timeout
-   (240 s after the trigger for most types) fires — then the ScenarioTimeoutTest records an infraction;
+   (240 s after the trigger for most types) fires — then the ScenarioTimeoutTest records an infraction. While a
+   scenario with a timeout runs, the route's agent-blocked test is switched off (LB2.0's ``ScenarioTimeout``);
 4. **done**: :meth:`Scenario.cleanup` removes its actors and undoes its hooks; its criteria are terminated.
 
 Scenarios publish :class:`~b2d_data.sim.api.ScenarioHint` for the expert through :meth:`Scenario.hint` while
@@ -28,6 +29,7 @@ from b2d_data.format import leaderboard as lb
 from b2d_data.format.scenario_types import SCENARIO_TYPES
 from b2d_data.format.transform import Transform
 from b2d_data.scenarios.criteria.base import FAILURE, RUNNING, SUCCESS, Criterion, Infraction
+from b2d_data.scenarios.criteria.route_criteria import SWITCH_ACTOR_BLOCKED
 from b2d_data.scenarios.triggers import BUILD_DISTANCE, horizontal_distance, route_point_reached, trigger_route_index
 from b2d_data.sim.api import (
     ActorSpec,
@@ -200,8 +202,9 @@ class YieldToEmergencyVehicleTest(Criterion):
 class Scenario:
     """Base class of every scenario behaviour; subclasses set ``xml_type`` and override the hooks they need.
 
-    ``scenario_timeout`` (s) ends a running scenario with a ScenarioTimeoutTest infraction; ``None`` means the
-    type has no ScenarioTimeout behaviour (``timeout_test`` still adds a never-firing test where LB2.0 lists one).
+    ``scenario_timeout`` (s) ends a running scenario with a ScenarioTimeoutTest infraction and pauses the route's
+    agent-blocked test while the scenario runs; ``None`` means the type has no ScenarioTimeout behaviour
+    (``timeout_test`` still adds a never-firing test where LB2.0 lists one).
     """
 
     xml_type: ClassVar[str] = ""
@@ -415,7 +418,8 @@ class ScenarioManager:
         return [ev for e in self._entries for c in e.criteria for ev in c.events]
 
     def pop_switches(self) -> list[tuple[str, bool]]:
-        """Criteria switch requests since the last call, in order (e.g. wrong-direction test off/on)."""
+        """Criteria switch requests since the last call, in order (wrong-direction test off/on, agent-blocked test
+        off from a timed scenario's trigger to its end)."""
         for e in self._entries:
             self._switches.extend(e.scenario.switch_requests)
             e.scenario.switch_requests.clear()
@@ -459,6 +463,7 @@ class ScenarioManager:
                 log.info("%s: triggered at t=%.2f s", scenario.name, snapshot.timestamp)
                 e.started_at = snapshot.timestamp
                 e.state = _State.RUNNING
+                self._pause_blocked_test(scenario)
                 scenario.start(snapshot)
                 e.criteria = scenario.criteria()  # after start: some criteria watch actors spawned there
             if e.state is _State.RUNNING:
@@ -484,9 +489,25 @@ class ScenarioManager:
         for criterion in e.criteria:
             criterion.terminate(snapshot, ego)
         e.scenario.cleanup()
+        self._resume_blocked_test(e.scenario)
         e.status = status
         e.state = _State.DONE
         log.info("%s: ended (%s) at t=%.2f s", e.scenario.name, status.value, snapshot.timestamp)
+
+    # LB2.0's ScenarioTimeout behaviour writes the blackboard key AC_SwitchActorBlockedTest: False when it starts
+    # (ab:4296-4302) and True when it terminates (ab:4316-4323), so an ego that stands at an obstacle is scored by the
+    # 240 s ScenarioTimeoutTest (x0.7) instead of ending the route as blocked after 60 s. The key holds one value:
+    # with two such scenarios overlapping, the last writer wins (the first to end switches the test back on), and
+    # the route criteria reproduce that by applying the requests in order (ActorBlockedTest.switch).
+    @staticmethod
+    def _pause_blocked_test(scenario: Scenario) -> None:
+        if scenario.scenario_timeout is not None:
+            scenario.request_switch(SWITCH_ACTOR_BLOCKED, False)
+
+    @staticmethod
+    def _resume_blocked_test(scenario: Scenario) -> None:
+        if scenario.scenario_timeout is not None:
+            scenario.request_switch(SWITCH_ACTOR_BLOCKED, True)
 
     def cleanup(self, snapshot: Snapshot | None = None) -> None:
         """End every scenario still built or running (route over): terminate criteria, remove actors, undo hooks."""
@@ -497,6 +518,8 @@ class ScenarioManager:
                     criterion.terminate(snapshot, ego)
             if e.state in (_State.BUILT, _State.RUNNING):
                 e.scenario.cleanup()
+                if e.state is _State.RUNNING:
+                    self._resume_blocked_test(e.scenario)
                 e.state = _State.DONE
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,7 @@ from b2d_data.format.weather import ROUTE_DEFAULT
 from b2d_data.maps import load_opendrive
 from b2d_data.maps.towngen import write_town
 from b2d_data.scenarios.catalog.road_geometry import heading_change, lane_walk
-from b2d_data.scenarios.criteria import SWITCH_WRONG_DIRECTION
+from b2d_data.scenarios.criteria import SWITCH_ACTOR_BLOCKED, SWITCH_WRONG_DIRECTION, RouteCriteria
 from b2d_data.scenarios.framework import (
     SCENARIO_CLASSES,
     Scenario,
@@ -126,10 +128,14 @@ def test_life_cycle_build_trigger_update_end(route, monkeypatch):
     at = int(np.searchsorted(s, s[trigger] - 1.5))
     manager.tick(ego_at(route, at, 0.15), at)
     assert scenario.calls == ["build", "start", "update"] and manager.active == [scenario]
-    assert manager.pop_switches() == [(SWITCH_WRONG_DIRECTION, False)] and manager.pop_switches() == []
+    # a scenario with a ScenarioTimeout switches the agent-blocked test off at its trigger (LB2.0's
+    # ScenarioTimeout.initialise), before its own start hooks run
+    assert manager.pop_switches() == [(SWITCH_ACTOR_BLOCKED, False), (SWITCH_WRONG_DIRECTION, False)]
+    assert manager.pop_switches() == []
     scenario.finish = True
     manager.tick(ego_at(route, trigger, 0.20), trigger)
     assert scenario.calls[-2:] == ["update", "end"]
+    assert manager.pop_switches() == [(SWITCH_ACTOR_BLOCKED, True)]  # ScenarioTimeout.terminate
     assert manager.statuses == {"RecorderForTests_1": ScenarioStatus.SUCCESS}
     assert manager.active == [] and manager.hints() == [] and manager.events == []
     manager.tick(ego_at(route, trigger + 5, 0.25), trigger + 5)
@@ -202,3 +208,79 @@ def test_yield_to_emergency_vehicle_test_judges_the_last_state_seen():
     assert [(e.key, e.message) for e in failing.events] == [
         (lb.YIELD_EMERGENCY_VEHICLE, "Agent failed to yield to an emergency vehicle")
     ]
+
+
+# --------------------------------------------------------------------------- the agent-blocked test (issue 23, X1)
+
+
+class Untimed(Recorder):
+    """A scenario type without a ScenarioTimeout (DynamicObjectCrossing, ControlLoss, ...)."""
+
+    xml_type = "UntimedForTests"
+    scenario_timeout = None
+    timeout_test = False
+
+
+def stand_still(route: DenseRoute, configs: list[ScenarioConfig], monkeypatch, until: float, dt: float = 0.25,
+                finish: dict[str, float] | None = None) -> tuple[RouteCriteria, ScenarioManager, float | None]:
+    """The ego stands at the first trigger point from t = 0; the route criteria get the manager's switches each
+    tick as ``route_runner`` passes them. ``finish`` ends named scenarios at given times. Returns the criteria, the
+    manager and the time at which the route stopped as blocked (None if it did not)."""
+    monkeypatch.setitem(SCENARIO_CLASSES, "RecorderForTests", Recorder)
+    monkeypatch.setitem(SCENARIO_CLASSES, "UntimedForTests", Untimed)
+
+    def factory(cfg: ScenarioConfig) -> ScenarioContext:
+        return ScenarioContext(sim=None, map=route.waypoints[0].map, route=route, config=cfg,  # type: ignore[arg-type]
+                               rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+
+    manager = ScenarioManager(factory, configs)
+    criteria = RouteCriteria(route.waypoints[0].map, route, EGO)
+    index = manager.scenarios[0].trigger_index
+    for k in range(round(until / dt) + 1):
+        t = k * dt
+        for scenario in manager.scenarios:
+            if isinstance(scenario, Recorder) and (finish or {}).get(scenario.name, math.inf) <= t:
+                scenario.finish = True
+        snapshot = ego_at(route, index, t)
+        manager.tick(snapshot, index)
+        for name, active in manager.pop_switches():
+            criteria.switch(name, active)
+        criteria.update(snapshot, snapshot.actors[EGO], index)
+        if criteria.stop_reason == "Agent got blocked":
+            return criteria, manager, t
+    return criteria, manager, None
+
+
+def recorder_config(route: DenseRoute, index: int, n: int = 1, xml_type: str = "RecorderForTests") -> ScenarioConfig:
+    t = route.waypoints[index].transform
+    return ScenarioConfig(f"{xml_type}_{n}", xml_type, Transform(t.location, Rotation(yaw=t.rotation.yaw)))
+
+
+def test_a_scenario_timeout_pauses_the_agent_blocked_test(route, monkeypatch):
+    # LB2.0: ScenarioTimeout.initialise sets AC_SwitchActorBlockedTest False, terminate sets it True again, and
+    # ActorBlockedTest restarts its clock whenever the key is read. An ego that stands from t = 0 at a trigger reached
+    # at t = 0 is therefore not blocked at 60 s; the scenario times out at t = 240 s (ScenarioTimeoutTest, x0.7),
+    # the test comes back on with its clock at 240 s, and the route ends as blocked at the first tick past 300 s.
+    criteria, manager, blocked_at = stand_still(route, [recorder_config(route, 30)], monkeypatch, until=320.0)
+    assert blocked_at == pytest.approx(300.25)
+    assert [e.key for e in manager.events] == [lb.SCENARIO_TIMEOUTS]
+    assert [e.key for e in criteria.blocked.events] == [lb.VEHICLE_BLOCKED]
+
+
+def test_without_a_scenario_timeout_the_agent_blocked_test_stays_on(route, monkeypatch):
+    # the same standing ego at a scenario without a ScenarioTimeout: blocked at the first tick past 60 s
+    _, manager, blocked_at = stand_still(route, [recorder_config(route, 30, xml_type="UntimedForTests")],
+                                         monkeypatch, until=100.0)  # fmt: skip
+    assert blocked_at == pytest.approx(60.25) and manager.events == []
+
+
+def test_overlapping_scenario_timeouts_the_last_writer_wins(route, monkeypatch):
+    # two timed scenarios triggered together at t = 0; the first ends at t = 100 s and writes True while the second
+    # still runs: LB2.0's blackboard key holds the last value written, so the test is on again from 100 s and the
+    # standing ego is blocked at the first tick past 160 s, long before the second scenario's timeout at 240 s
+    configs = [recorder_config(route, 30, 1), recorder_config(route, 30, 2)]
+    _, manager, blocked_at = stand_still(route, configs, monkeypatch, until=200.0,
+                                         finish={"RecorderForTests_1": 100.0})  # fmt: skip
+    assert blocked_at == pytest.approx(160.25)
+    assert manager.statuses["RecorderForTests_1"] is ScenarioStatus.SUCCESS
+    assert manager.statuses["RecorderForTests_2"] is None  # still running when the route ended

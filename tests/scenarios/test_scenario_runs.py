@@ -17,6 +17,7 @@ from b2d_data.format.rig import EGO_TYPE_ID
 from b2d_data.format.transform import Location, Transform, Vector3D
 from b2d_data.maps import LaneType, load_opendrive
 from b2d_data.maps.towngen import write_town
+from b2d_data.scenarios.criteria import SWITCH_ACTOR_BLOCKED, SWITCH_WRONG_DIRECTION
 from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioContext, ScenarioManager, ScenarioStatus
 from b2d_data.scenarios.placement import make_routes
 from b2d_data.scenarios.route import DenseRoute
@@ -250,7 +251,12 @@ def test_issue14_scenario_defining_event(town, scenario_type):
         assert status in ([ScenarioStatus.SUCCESS], [None]), trace.statuses  # None: still running at the route end
     else:
         assert status == [ScenarioStatus.SUCCESS], trace.statuses
-    assert trace.events == [] and trace.leftover == 0
+    events = trace.events
+    if scenario_type == "VehicleTurningRoutePedestrian":
+        # its own CollisionTest (LB2.0 keeps it in route mode) sees the scripted ego, which drives through the walker
+        # and whatever else is in its lane; no other criterion may fire
+        events = [e for e in events if e.key not in (lb.COLLISIONS_VEHICLE, lb.COLLISIONS_LAYOUT, lb.COLLISIONS_PEDESTRIAN)]
+    assert events == [] and trace.leftover == 0
     actors = list(seen.values())
     walkers = [o for o in actors if o.kind is ActorKind.WALKER]
     vehicles = [o for o in actors if o.kind is ActorKind.VEHICLE]
@@ -411,8 +417,10 @@ def test_the_two_way_bicycles_ride_and_the_opposite_traffic_thins_out(town):
     bicycle_speed = float(route.scenarios[0].parameter("bicycle_speed")) / 3.6
     spawn_dists: list[float] = []
     speeds: list[float] = []
+    switches: list[tuple[str, bool]] = []
 
     def watch(snap, dense, manager):
+        switches.extend(manager.pop_switches())
         for scenario in manager.scenarios:
             spawn_dists.append(scenario.ctx.sim.background.settings.opposite_spawn_dist)
         speeds.extend(a.speed() for a in snap.actors.values() if a.role_name == SCENARIO_ROLE and "bike" in a.type_id
@@ -421,4 +429,58 @@ def test_the_two_way_bicycles_ride_and_the_opposite_traffic_thins_out(town):
     trace = run_scripted(town, route, on_tick=watch)
     assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
     assert max(speeds) == pytest.approx(bicycle_speed, abs=0.3)
-    assert frequency in spawn_dists and spawn_dists[0] == 40.0
+    assert frequency in spawn_dists and spawn_dists[0] == 40.0 and spawn_dists[-1] == 40.0
+    # LB2.0 (route_obstacles.py, HazardAtSideLaneTwoWays._create_behavior): ScenarioTimeout switches the blocked
+    # test off at the trigger; SwitchWrongDirectionTest(False) 5 s after the approach; after the main behaviour
+    # SwitchWrongDirectionTest(False) again, never True: the opposite lane stays unscored for the rest of the route;
+    # ScenarioTimeout.terminate switches the blocked test back on.
+    assert switches == [(SWITCH_ACTOR_BLOCKED, False), (SWITCH_WRONG_DIRECTION, False),
+                        (SWITCH_WRONG_DIRECTION, False), (SWITCH_ACTOR_BLOCKED, True)]  # fmt: skip
+
+
+def test_the_emergency_vehicle_drives_90_kmh_faster_than_the_ego(town):
+    # LB2.0's AdaptiveConstantVelocityAgentBehavior: target [km/h] = get_speed(ego) [km/h] + speed_increment * 3.6,
+    # speed_increment = 25. With the scripted ego at 8 m/s (28.8 km/h) that is 118.8 km/h = 33 m/s, not the
+    # 8 + 25 / 3.6 = 14.9 m/s of a km/h increment.
+    route = make_routes(town, "YieldToEmergencyVehicle", 1, seed=0)[0]
+    targets: list[float] = []
+
+    def watch(snap, dense, manager):
+        target = manager.scenarios[0].target_speed
+        if target is not None:
+            targets.append(target)
+
+    run_scripted(town, route, on_tick=watch)
+    assert targets and all(t == pytest.approx(8.0 + 25.0, abs=0.05) for t in targets[1:]), targets[:5]
+
+
+def test_the_door_scenario_flow_comes_from_behind_in_the_ego_lane(town):
+    # LB2.0: OppositeActorFlow(parked_wp.get_left_lane(), ...) with parked_wp = front_wp.get_right_lane(): the flow's
+    # reference lane is the ego's own, its source 1.5 x limit [km/h] + 30 m behind the car on that lane, its sink as
+    # far ahead; the opposite background is switched off. So every flow car drives the ego's way in the ego's lane
+    # and none comes toward the ego.
+    route = make_routes(town, "VehicleOpensDoorTwoWays", 1, seed=0)[0]
+    flow: dict[int, list[tuple[float, float]]] = {}  # id -> (signed distance left of the route, heading dot)
+    first_seen: dict[int, float] = {}  # id -> arc length along the route where it was first seen
+    parked: list[float] = []
+
+    def watch(snap, dense, manager):
+        scenario = manager.scenarios[0]
+        if scenario.first_id is not None and scenario.first_id in snap.actors and not parked:
+            parked.append(float(dense.cumulative_length[dense.closest_index(snap.actors[scenario.first_id].location)]))
+        for a in snap.actors.values():
+            if a.role_name != SCENARIO_ROLE or a.id == scenario.first_id or a.kind is not ActorKind.VEHICLE:
+                continue
+            left, width = _left_of_route(dense, a.location)
+            flow.setdefault(a.id, []).append((left / width, _heading_dot(dense, a)))
+            first_seen.setdefault(a.id, float(dense.cumulative_length[dense.closest_index(a.location)]))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert flow, "no flow car appeared"
+    for samples in flow.values():
+        assert all(dot > 0.9 for _, dot in samples)  # the ego's direction
+        assert all(abs(lane) < 0.5 for lane, _ in samples)  # within the ego's lane
+    # spawned behind the parked car (on the route's own lane, or behind the route's start on that lane)
+    assert all(s < parked[0] - 10.0 for s in first_seen.values())
+

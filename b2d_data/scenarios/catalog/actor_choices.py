@@ -22,8 +22,10 @@ CONSTRUCTION_CONE = "static.prop.constructioncone"
 #: Light state names (CARLA's VehicleLightState flags) for sirens and hazard blinkers.
 SIREN_LIGHTS = "Special1"
 HAZARD_LIGHTS = "LeftBlinker|RightBlinker"
-#: DynamicObjectCrossing blocker props (XML ``blocker_model``).
+#: DynamicObjectCrossing blocker props (XML ``blocker_model``) that generated routes draw from (bench2drive220's).
 BLOCKER_MODELS = ("static.prop.advertisement", "static.prop.container")
+#: DynamicObjectCrossing's blocker when the XML gives none: LB2.0's default (object_crash_vehicle.py).
+DEFAULT_BLOCKER_MODEL = "static.prop.vendingmachine"
 
 
 def _pick(ids: list[str], rng: np.random.Generator) -> str:

@@ -1,6 +1,7 @@
 """DynamicObjectCrossing (§2.2 #14): a pedestrian steps out from behind a prop on the sidewalk into the road.
 
-A blocker prop (advertisement or container, turned 90°) stands ``distance`` m ahead on the ``direction``-side
+A blocker prop (``blocker_model``: advertisement or container on generated routes, LB2.0's vending machine when
+the XML gives none; turned 90°) stands ``distance`` m ahead on the ``direction``-side
 sidewalk; the pedestrian appears just beyond it facing the road (turned by ``crossing_angle``) when the ego's time
 to arrival at the lane point abreast of it drops below ``2.1 + 0.1 × floor(angle / 5)`` s (or within 6 m), walks at
 2 m/s for twice its distance to that point, and is removed with the blocker. The scenario ends 40 m later.
@@ -13,7 +14,7 @@ import math
 
 from b2d_data.format.transform import Vector3D
 from b2d_data.maps import LaneType
-from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS, half_extent, random_walker
+from b2d_data.scenarios.catalog.actor_choices import DEFAULT_BLOCKER_MODEL, half_extent, random_walker
 from b2d_data.scenarios.catalog.road_geometry import (
     find_side_lane,
     lateral_offset,
@@ -48,7 +49,7 @@ class DynamicObjectCrossing(Scenario):
         self.direction = ctx.text("direction", "right")
         if self.direction not in ("left", "right"):
             raise ScenarioSetupError(f"{self.name}: direction must be 'left' or 'right', got {self.direction!r}")
-        self.blocker_model = ctx.text("blocker_model", BLOCKER_MODELS[0])
+        self.blocker_model = ctx.text("blocker_model", DEFAULT_BLOCKER_MODEL)
         self.crossing_angle = ctx.value("crossing_angle", 0.0)
         self.sign = 1.0 if self.direction == "right" else -1.0
         wp = move_along(self.trigger_waypoint, self.distance)

@@ -68,7 +68,8 @@ class CrossingBicycleFlow(JunctionScenario):
 
     xml_type = "CrossingBicycleFlow"
     green_light_delay: ClassVar[float] = 5.0
-    default_interval: ClassVar[tuple[float, float]] = (15.0, 30.0)
+    #: LB2.0's default ``source_dist_interval`` (cross_bicycle_flow.py); generated routes always set it.
+    default_interval: ClassVar[tuple[float, float]] = (20.0, 50.0)
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)

@@ -43,11 +43,14 @@ class EnterActorFlow(JunctionScenario):
     """Merge into a dense flow on the road entered through the junction (§2.2 #29)."""
 
     xml_type = "EnterActorFlow"
-    default_interval: ClassVar[tuple[float, float]] = (20.0, 40.0)
+    #: LB2.0's defaults (actor_flow.py EnterActorFlow: ``flow_speed`` 10 m/s, ``source_dist_interval`` [20, 50]);
+    #: bench2drive220, routes_training and generated routes always set both.
+    default_interval: ClassVar[tuple[float, float]] = (20.0, 50.0)
+    default_flow_speed: ClassVar[float] = 10.0
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 15.0)
+        self.flow_speed = ctx.value("flow_speed", self.default_flow_speed)
         self.interval = ctx.interval("source_dist_interval", self.default_interval)
         source = self._lane_point("start_actor_flow")
         sink = self._lane_point("end_actor_flow")

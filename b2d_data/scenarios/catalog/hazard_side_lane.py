@@ -139,7 +139,9 @@ class HazardAtSideLaneTwoWays(HazardAtSideLane):
     """The bicycles of :class:`HazardAtSideLane` on a two-way road (§2.2 #12).
 
     5 s after the ego came within 50 m of the first bicycle the wrong-direction check is switched off and the
-    opposite background spawns every ``frequency`` m (sparser); both are restored at the end (spawn distance 40 m).
+    opposite background spawns every ``frequency`` m (sparser). At the end the opposite spacing goes back to 40 m,
+    but the wrong-direction check stays off for the rest of the route: LB2.0's behaviour ends with
+    ``SwitchWrongDirectionTest(False)`` (route_obstacles.py, HazardAtSideLaneTwoWays._create_behavior), not True.
     """
 
     xml_type = "HazardAtSideLaneTwoWays"
@@ -149,6 +151,7 @@ class HazardAtSideLaneTwoWays(HazardAtSideLane):
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.frequency = ctx.value("frequency", 100.0)
+        self._triggered = False
 
     def check_layout(self, first: Waypoint) -> None:
         """Needs an opposite driving lane left of the first bicycle."""
@@ -164,6 +167,18 @@ class HazardAtSideLaneTwoWays(HazardAtSideLane):
         self.ctx.sim.background.change_opposite_behavior(spawn_dist=self.frequency)
 
     def unreact(self) -> None:
-        """Restore the opposite background's spacing and the wrong-direction test."""
+        """Restore the opposite background's spacing (the wrong-direction test stays as :meth:`on_end` leaves it)."""
         self.ctx.sim.background.change_opposite_behavior(spawn_dist=self.opposite_spawn_dist)
-        self.request_switch(SWITCH_WRONG_DIRECTION, True)
+
+    def start(self, snapshot: Snapshot) -> None:
+        """As :class:`HazardAtSideLane`; remembers that the scenario ran (its end switches the test off)."""
+        self._triggered = True
+        super().start(snapshot)
+
+    def on_end(self) -> None:
+        """Undo the reaction; a scenario that ran leaves the wrong-direction test off, as LB2.0's does."""
+        super().on_end()
+        if self._triggered:
+            # LB2.0 appends SwitchWrongDirectionTest(False) after the scenario's main behaviour whether or not the
+            # reaction happened; the test is never switched back on by this scenario.
+            self.request_switch(SWITCH_WRONG_DIRECTION, False)

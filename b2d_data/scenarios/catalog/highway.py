@@ -92,6 +92,10 @@ class HighwayCutIn(JunctionScenario):
 
     xml_type = "HighwayCutIn"
     required_turn = ("straight",)
+    # LB2.0's HighwayCutIn has no ScenarioTimeout behaviour and, in route mode, no criteria (highway_cut_in.py
+    # _create_behavior / _create_test_criteria): no 240 s end, no ScenarioTimeoutTest, no pause of the blocked test.
+    scenario_timeout = None
+    timeout_test = False
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)

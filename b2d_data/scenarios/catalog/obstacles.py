@@ -314,6 +314,8 @@ class ConstructionSite(RoadObstacle):
     The ego's lane is taken out of the background traffic while the scenario runs.
     """
 
+    #: LB2.0's default ``distance`` of both construction types (construction_crash_vehicle.py), not 120 m.
+    default_distance = 100.0
     clear_extra = 20.0
     trigger_distance = 30.0
     board_before = 5.0

@@ -153,6 +153,25 @@ def lane_walk(wp: Waypoint, distance: float, forward: bool = True, step: float =
     return out
 
 
+def move_before_junction(wp: Waypoint, distance: float, forward: bool = True) -> Waypoint:
+    """Up to ``distance`` m along the lane in 1 m steps, stopping at the last point before a junction or dead end.
+
+    scenario_runner's ``_move_waypoint_forward`` / ``_move_waypoint_backwards`` (OppositeActorFlow and the obstacle
+    scenarios): a step that would land inside a junction is not taken, so the result is never in one unless ``wp``
+    is.
+    """
+    current = wp
+    walked = 0.0
+    while walked < distance - 1e-6:
+        options = current.next(1.0) if forward else current.previous(1.0)
+        nxt = straightest(options, current.transform.rotation.yaw)
+        if nxt is None or nxt.is_junction:
+            break
+        current = nxt
+        walked += 1.0
+    return current
+
+
 def heading_change(waypoints: Sequence[Waypoint]) -> float:
     """Largest heading difference (deg) between any waypoint and the first one."""
     if not waypoints:

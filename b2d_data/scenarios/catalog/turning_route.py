@@ -6,6 +6,9 @@ point (+0.5 m) drops below 2.2 s (or within 6 m) it walks across the whole exit 
 VehicleTurningRoute: a bicycle on the right side of the exit road 11 m after the first exit point, facing the
 road; TTA (1.8 s, 6 m) on that lane point; it crosses at 1.8 m/s for twice its distance to the lane point and is
 removed. Both end when the ego has driven 40 m more.
+
+VehicleTurningRoutePedestrian keeps LB2.0's own CollisionTest in route mode (VehicleTurningRoute returns none): the
+route adds it to its criteria, so a collision from the trigger to the scenario's end is counted twice.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from b2d_data.scenarios.catalog.road_geometry import (
     outermost_lane,
 )
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, WalkerController, park
+from b2d_data.scenarios.criteria.base import Criterion
+from b2d_data.scenarios.criteria.collision import CollisionTest
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, TimeToArrivalTrigger
 from b2d_data.sim.api import Snapshot
@@ -115,6 +120,15 @@ class VehicleTurningRoutePedestrian(_TurningRouteScenario):
             for f in (0.0, 0.5, 1.0, 1.5)
         ]
         self.walker = self.spawn(random_walker(self.ctx.rng), candidates[0], retries=candidates[1:])
+
+    def extra_criteria(self) -> list[Criterion]:
+        """A second CollisionTest on the ego, from the trigger to the end.
+
+        LB2.0's ``VehicleTurningRoutePedestrian._create_test_criteria`` returns ``[CollisionTest(ego)]`` in route
+        mode too (object_crash_intersection.py), unlike VehicleTurningRoute's empty list; the route criteria take it
+        in and the statistics multiply every criterion's events, so such a collision costs its factor twice.
+        """
+        return [CollisionTest(self.ctx.ego_id)]
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """TTA trigger → walk across the exit road → remove → 40 m more."""

@@ -3,8 +3,14 @@
 The car (a model with doors that open) stands ``distance`` m ahead in the parking lane or shoulder on the ``direction``
 side, pushed toward the driving lane by (side-lane width − car half-width) / 4. When the ego's time to arrival at the
 lane point beside the car drops below 3 s (or it is within 10 m) the door on the traffic side opens and the background
-behind the ego stops; 5 s later the wrong-direction check is switched off and an opposite flow starts, as in
-ParkedObstacleTwoWays. The scenario ends 50 m past the car (or after 240 s); the background behind then resumes.
+behind the ego stops; 5 s later the wrong-direction check is switched off, the opposite background is switched off
+and a flow starts. The scenario ends 50 m past the car (or after 240 s); the background behind then resumes.
+
+The flow is LB2.0's, not ParkedObstacleTwoWays' opposite one: ``OppositeActorFlow(parked_wp.get_left_lane(), ...)``
+with ``parked_wp = front_wp.get_right_lane()`` (vehicle_opens_door.py) is anchored on the lane left of the parked
+car, which is the ego's own driving lane. Its source lies ``1.5 × limit [km/h] + 30`` m behind the car on that lane
+and its sink as far ahead (both stopping before a junction), so in CARLA the ego meets an empty opposite lane and
+cars coming up behind it in its own lane. The default ``distance`` is LB2.0's 50 m.
 """
 
 from __future__ import annotations
@@ -14,8 +20,9 @@ from typing import ClassVar
 
 from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_car_with_doors
+from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
 from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
-from b2d_data.scenarios.catalog.road_geometry import neighbour, offset_transform
+from b2d_data.scenarios.catalog.road_geometry import move_before_junction, neighbour, offset_transform
 from b2d_data.scenarios.controllers import park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import Timer, TimeToArrivalTrigger
@@ -42,6 +49,8 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
     """A parked car opens its door into the ego's lane; the ego overtakes it through the opposite lane."""
 
     xml_type = "VehicleOpensDoorTwoWays"
+    #: LB2.0's default ``distance`` (vehicle_opens_door.py), not the 120 m of the other obstacle scenarios.
+    default_distance = 50.0
     clear_extra = 20.0
     tta_time: ClassVar[float] = 3.0
     tta_distance: ClassVar[float] = 10.0
@@ -78,6 +87,25 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         if not self.door_opened and self._door_trigger.check(ego):
             self.open_door()
         return self.door_opened and self._flow_wait.check(snapshot)
+
+    def _make_flow(self) -> ActorFlow | None:
+        """LB2.0's flow of this scenario: on the ego's lane, from behind the parked car to as far beyond it.
+
+        The anchor is the driving lane beside the car toward the road, the lane point abreast of the car
+        (``front_wp``, the one the car was placed from). For ``direction=right`` that is exactly LB2.0's
+        ``parked_wp.get_left_lane()``; placement and bench2drive220 use no other direction.
+        """
+        anchor = self.obstacle_waypoint
+        limit = self.ctx.map.speed_limit(anchor)
+        reach = 1.5 * limit + 30.0
+        source = move_before_junction(anchor, reach, forward=False)
+        sink = move_before_junction(anchor, reach, forward=True)
+        try:
+            path = flow_path(source, sink, 2.0 * reach + 50.0)
+        except ScenarioSetupError as exc:
+            log.warning("%s: no flow (%s)", self.name, exc)
+            return None
+        return ActorFlow(self.ctx.sim, self.ctx.rng, path, limit / 3.6, self.frequency, constant_velocity=False)
 
     def open_door(self) -> None:
         """Open the traffic-side front door and stop the background behind the ego."""

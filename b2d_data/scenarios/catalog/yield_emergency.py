@@ -1,10 +1,14 @@
 """YieldToEmergencyVehicle (§2.2 #17): an emergency vehicle with sirens approaches from behind in the ego's lane.
 
 At the trigger the ego's lane is removed from background traffic and the vehicle appears ``distance`` m behind the
-trigger point; a constant-velocity agent drives it at the ego's speed + 25 km/h (LB2.0's ``speed_increment`` is in
-km/h: ConstantVelocityAgent speeds are km/h), braking for vehicles in its path. The scenario ends 10 s after the
-vehicle came within 50 m of the ego, or once it is in front of the ego and drove 50 m more;
-YieldToEmergencyVehicleTest then fails if the vehicle is still behind the ego.
+trigger point; a constant-velocity agent drives it at the ego's speed + 25 m/s (90 km/h), braking for vehicles in
+its path. That is LB2.0's arithmetic: ``AdaptiveConstantVelocityAgentBehavior`` sets the agent's km/h target to
+``get_speed(ego)`` [km/h] ``+ speed_increment * 3.6`` with ``speed_increment=25`` (atomic_behaviors.py), so the
+increment is 25 m/s whatever its docstring says. A vehicle in its path within 10 m + its speed [m/s] sets its
+speed to that vehicle's at once (CARLA's ConstantVelocityAgent hazard rule), so it closes in and tails an ego that
+does not give way. The scenario ends 10 s after the vehicle came within 50 m of the
+ego, or once it is in front of the ego and drove 50 m more; YieldToEmergencyVehicleTest then fails if the vehicle is
+still behind the ego.
 """
 
 from __future__ import annotations
@@ -40,7 +44,8 @@ class YieldToEmergencyVehicle(Scenario):
     xml_type = "YieldToEmergencyVehicle"
     scenario_timeout = None
     timeout_test = False
-    speed_increment = 25.0 / 3.6
+    #: m/s added to the ego's speed: LB2.0 adds ``25 * 3.6`` to a km/h speed (see the module docstring).
+    speed_increment = 25.0
     trigger_distance = 50.0
     idle_time = 10.0
     end_distance = 50.0
@@ -72,6 +77,8 @@ class YieldToEmergencyVehicle(Scenario):
         self._ev_after = DriveDistance(self.end_distance)
         self._test: YieldToEmergencyVehicleTest | None = None
         self._seen = False
+        #: The EV's cruising speed (m/s): the ego's speed + :attr:`speed_increment`, updated every tick.
+        self.target_speed: float | None = None
 
     def start(self, snapshot: Snapshot) -> None:
         """Remove the ego's lane from the background, place the emergency vehicle behind and start it."""
@@ -82,6 +89,7 @@ class YieldToEmergencyVehicle(Scenario):
         path = PathTrack.from_waypoints(follow_lane(self.start_waypoint, self.distance + 400.0))
         ego = self.ctx.ego(snapshot)
         speed = (ego.speed() if ego is not None else 0.0) + self.speed_increment
+        self.target_speed = speed
         # ConstantVelocityAgent speeds up at once when its path clears; 10 m/s² keeps that character
         self._agent = ConstantVelocityAgent(
             self.ctx.sim,
@@ -90,7 +98,7 @@ class YieldToEmergencyVehicle(Scenario):
             speed,
             detect_vehicles=True,
             base_threshold=10.0,
-            speed_ratio=0.15,
+            match_leader=True,
             resume_accel=10.0,
         )
 
@@ -111,7 +119,8 @@ class YieldToEmergencyVehicle(Scenario):
         self._seen = True
         if ego is None or self._agent is None:
             return ScenarioStatus.RUNNING
-        self._agent.speed = ego.speed() + self.speed_increment
+        self.target_speed = ego.speed() + self.speed_increment
+        self._agent.speed = self.target_speed
         self._agent.run_step(snapshot)
         if snapshot.frame % self.lane_refresh_ticks == 0:
             # The background keeps removed lanes as offsets from the ego's current lane; once the ego has moved

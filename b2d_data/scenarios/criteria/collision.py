@@ -29,8 +29,10 @@ class CollisionTest(Criterion):
         self._collision_time: float | None = None
         self._collision_location: Location | None = None
 
-    def update(self, snapshot: Snapshot, ego: ActorState) -> None:
+    def update(self, snapshot: Snapshot, ego: ActorState | None) -> None:
         """Count this tick's hits, then let the filters expire (sensor callbacks run before the tree tick)."""
+        if ego is None:
+            return  # no ego in this snapshot (a scenario criterion updated while the ego is gone): nothing to count
         if self.test_status != FAILURE:
             self.test_status = RUNNING
         for event in snapshot.collisions:

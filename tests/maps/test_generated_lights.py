@@ -1,60 +1,35 @@
 """CARLA-style traffic lights at a junction whose OpenDRIVE file has none (``Map.with_junction_lights``).
 
-Tiny town (towngen, no junction control): a 3 × 3 street grid 120 m apart, one 3.49 m lane each way (seed 0's
-widths); the centre point (120, -120) in CARLA's frame is a 4-way junction, four roads enter it with one lane each.
+Tiny town: ``light_less_grid`` (tests/conftest.py), a 3 × 3 street grid without lights, one 3.49 m lane each way; the
+centre point (120, -120) in CARLA's frame is a 4-way junction that four roads enter with one lane each.
 """
 
 from __future__ import annotations
 
 import math
 import pickle
-from pathlib import Path
 
-import numpy as np
 import pytest
 
-from b2d_data.maps import Map, load_opendrive
+from b2d_data.format.transform import Location
+from b2d_data.maps import Map
 from b2d_data.maps.generated_lights import GENERATED_PREFIX, has_traffic_lights
-from b2d_data.maps.towngen.cross_sections import TownWidths, street
-from b2d_data.maps.towngen.layouts import GridSpec, add_grid
-from b2d_data.maps.towngen.network import NetworkBuilder, TownPlan
-from b2d_data.maps.towngen.xodr_writer import to_xml
 from b2d_data.sim.api import TrafficLightState
 from b2d_data.sim.builtin.furniture import furniture_from_map
 from b2d_data.sim.builtin.traffic_lights import TrafficLightController
 
+CENTRE = Location(120.0, -120.0, 0.0)
 G, Y, R = TrafficLightState.GREEN, TrafficLightState.YELLOW, TrafficLightState.RED
-CORNERS = ((0, 0), (2, 0), (0, 2), (2, 2))
-
-
-def write_grid_town(folder: Path, name: str = "Town199", parking: bool = False) -> Path:
-    """A 3 × 3 street grid without lights or signs; returns its .xodr."""
-    widths = TownWidths.draw(np.random.default_rng(0))
-    section = street(widths, parking=parking)
-    plan = TownPlan(name, "test", 0)
-    add_grid(plan, GridSpec(
-        (0.0, 120.0, 240.0), (0.0, 120.0, 240.0), (section,) * 3, (section,) * 3,
-        {p: section for p in CORNERS}, {p: 15.0 for p in CORNERS}, {},
-    ))  # fmt: skip
-    path = folder / f"{name}.xodr"
-    path.write_text(to_xml(NetworkBuilder(plan).build()))
-    return path
 
 
 def centre_junction(town: Map) -> int:
     """The grid's 4-way junction (the one whose box is centred at (120, -120))."""
-    return next(j.id for j in town.junctions.values() if j.bounding_box.location.distance_2d(_at(120, -120)) < 1.0)
-
-
-def _at(x: float, y: float):
-    from b2d_data.format.transform import Location
-
-    return Location(x, y, 0.0)
+    return next(j.id for j in town.junctions.values() if j.bounding_box.location.distance_2d(CENTRE) < 1.0)
 
 
 @pytest.fixture(scope="module")
-def grid(tmp_path_factory) -> Map:
-    return load_opendrive(write_grid_town(tmp_path_factory.mktemp("grid")))
+def grid(light_less_grid) -> Map:
+    return light_less_grid
 
 
 def test_a_light_less_junction_gets_one_head_per_incoming_road_in_one_group(grid):

@@ -1,5 +1,6 @@
-"""Shared fixtures: the real Bench2Drive / CARLA files the package ships (b2d_data/data); process-tree helpers for
-the tests that interrupt or kill a command and check that none of its processes outlives it."""
+"""Shared fixtures: the real Bench2Drive / CARLA files the package ships (b2d_data/data); a light-less street grid;
+process-tree helpers for the tests that interrupt or kill a command and check that none of its processes outlives
+it."""
 
 from __future__ import annotations
 
@@ -22,6 +23,33 @@ def b2d_data_dir() -> Path:
 def carla_maps_dir() -> Path:
     """The shipped CARLA towns (Town01/04/06/07/10HD .xodr)."""
     return data.carla_maps_dir()
+
+
+@pytest.fixture(scope="session")
+def light_less_grid(tmp_path_factory):
+    """Town199: a 3 × 3 street grid 120 m apart without lights or signs, one 3.49 m lane each way (seed 0's widths).
+
+    The grid points are junctions in CARLA's frame at (120, 0), (0, -120), (120, -120), (240, -120), (120, -240); the
+    corners are bends. The centre (120, -120) is a 4-way junction that four roads enter with one lane each.
+    """
+    import numpy as np
+
+    from b2d_data.maps import load_opendrive
+    from b2d_data.maps.towngen.cross_sections import TownWidths, street
+    from b2d_data.maps.towngen.layouts import GridSpec, add_grid
+    from b2d_data.maps.towngen.network import NetworkBuilder, TownPlan
+    from b2d_data.maps.towngen.xodr_writer import to_xml
+
+    section = street(TownWidths.draw(np.random.default_rng(0)))
+    corners = ((0, 0), (2, 0), (0, 2), (2, 2))
+    plan = TownPlan("Town199", "test", 0)
+    add_grid(plan, GridSpec(
+        (0.0, 120.0, 240.0), (0.0, 120.0, 240.0), (section,) * 3, (section,) * 3,
+        {p: section for p in corners}, {p: 15.0 for p in corners}, {},
+    ))  # fmt: skip
+    path = tmp_path_factory.mktemp("grid") / "Town199.xodr"
+    path.write_text(to_xml(NetworkBuilder(plan).build()))
+    return load_opendrive(path)
 
 
 def descendants(pid: int) -> set[int]:

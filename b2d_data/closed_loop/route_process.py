@@ -128,13 +128,15 @@ def crash_record(task: RouteTask, message: str, detail: str = "") -> lb.RouteRec
 
 def run_route(task: RouteTask, settings: RouteSettings) -> RouteOutcome:
     """Run one route with the agent and write its metric info and record; returns how it went."""
+    from b2d_data.scenarios.junction_signals import with_scenario_lights
     from b2d_data.scenarios.route import DenseRoute
     from b2d_data.sim.builtin.world import BuiltinSimulator
 
     t0 = time.monotonic()
     outcome = RouteOutcome(task.key)
     route = task.route
-    world_map = load_map(task.town)
+    # CARLA's level has lights at some junctions its OpenDRIVE file leaves without (Town04, route 26944)
+    world_map = with_scenario_lights(load_map(task.town), route)
     sim = BuiltinSimulator(world_map, seed=task.seed, weather=route.weather_at(0.0))
     agent: LeaderboardAgent | None = None
     try:

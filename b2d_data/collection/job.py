@@ -420,14 +420,17 @@ def run_route_job(
 def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed: int, result: JobResult) -> None:
     """The body of :func:`run_route_job`; fills ``result`` and raises on any error."""
     from b2d_data.expert import Expert, ExpertConfig
+    from b2d_data.scenarios.junction_signals import with_scenario_lights
     from b2d_data.scenarios.route import DenseRoute
     from b2d_data.scenarios.route_runner import RouteRunner
     from b2d_data.sim.builtin.world import BuiltinSimulator
 
     t0 = time.perf_counter()
-    world_map = load_map(town)
-    if route.town != world_map.name:
-        raise ValueError(f"route {route.id} is on {route.town} but the map is {world_map.name}")
+    town_map = load_map(town)
+    if route.town != town_map.name:
+        raise ValueError(f"route {route.id} is on {route.town} but the map is {town_map.name}")
+    # CARLA's level has lights at some junctions its OpenDRIVE file leaves without (Town04, route 26944)
+    world_map = with_scenario_lights(town_map, route)
     name = clip_name_of(route, world_map.name)
     result.clip = str(name)
     if (out / str(name)).exists():
@@ -446,7 +449,8 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
             from b2d_data.writers import ClipWriter
 
             rig = config.rig()
-            hdmap = ensure_hdmap(world_map, out)
+            # the corpus's one HD map per town is the file's, whichever route happens to export it first
+            hdmap = ensure_hdmap(town_map, out)
             agent = DataAgent(world_map, dense, rig)
             writer = ClipWriter(
                 out, name, FormatVersion(config.format_version), hdmap=hdmap,

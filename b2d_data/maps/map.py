@@ -6,6 +6,7 @@ the frame is CARLA's (OpenDRIVE y flipped once when lanes are sampled).
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from collections.abc import Iterable, Sequence
@@ -114,6 +115,8 @@ class Map:
                 self._inner_marks.append(segments[inner].marks if inner is not None else [])
         self._lane_index = LaneIndex(segments)
         self.junctions: dict[int, Junction] = self._build_junctions()
+        #: Junctions given CARLA-style traffic lights the file lacks (:meth:`with_junction_lights`).
+        self.generated_light_junctions: tuple[int, ...] = ()
         logger.debug("map %s: %d roads, %d lane segments", self.name, len(data.roads), len(segments))
 
     # ------------------------------------------------------------------ waypoints
@@ -415,6 +418,27 @@ class Map:
     def governing_signals(self, waypoint: Waypoint) -> list[Signal]:
         """Signals whose trigger box lies on the waypoint's lane (same road, section and lane)."""
         return self._signals.governing(waypoint)
+
+    def with_junction_lights(self, junction_ids: Iterable[int]) -> Map:
+        """This town with CARLA-style traffic lights added at these junctions (``b2d_data.maps.generated_lights``).
+
+        A copy, not a change: the town a process caches stays as its file says, so a route that needs the lights
+        does not hand them to the next route that process runs. The copy shares the lane geometry and rebuilds what
+        holds waypoints (junctions, signals, the route graph), since waypoints compare equal only on one map.
+        """
+        wanted = tuple(sorted(set(self.generated_light_junctions) | {int(j) for j in junction_ids}))
+        if wanted == self.generated_light_junctions:
+            return self
+        unknown = [j for j in wanted if j not in self.junctions]
+        if unknown:
+            raise KeyError(f"{self.name} has no junction {unknown[0]}")
+        clone = copy.copy(self)
+        for cached in ("_signals", "_route_graph"):
+            clone.__dict__.pop(cached, None)
+        clone.generated_light_junctions = wanted
+        clone.junctions = clone._build_junctions()
+        logger.info("%s: traffic lights added at junction(s) %s", self.name, ", ".join(map(str, wanted)))
+        return clone
 
     def speed_limit(self, waypoint: Waypoint) -> float:
         """Speed limit (km/h) at a waypoint: last speed sign passed, else lane/road speed, else 50."""

@@ -394,6 +394,14 @@ def build_signals(map_: Map) -> SignalIndex:
         Controller(c.id, c.name, c.sequence, tuple(c.signal_ids), controller_junction.get(c.id, -1))
         for c in data.controllers
     ]
+    if getattr(map_, "generated_light_junctions", ()):
+        from b2d_data.maps.generated_lights import junction_lights
+
+        for junction_id in map_.generated_light_junctions:
+            extra, extra_controllers = junction_lights(map_, junction_id)
+            signals.extend(extra)
+            controllers.extend(extra_controllers)
+            by_id.update((sig.id, sig) for sig in extra)
     index = SignalIndex(map_, signals, speed_signs, controllers, by_id)
     for sign in speed_signs:
         for lane in sign.lanes:

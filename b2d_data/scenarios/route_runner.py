@@ -153,18 +153,24 @@ def default_scenario_manager(setup: ScenarioSetup) -> ScenarioManagerLike:
                                rng=np.random.default_rng(seed_of[id(config)]), ego_id=setup.ego_id)
 
     configs = []
+    # Dropped scenarios go into the manager's ``skipped`` like those whose build fails, so the record says why.
+    dropped: list[tuple[str, str]] = []
     for config in setup.route.scenarios:
         if trigger_route_index(setup.dense_route, config.trigger_point) is None:
             log.warning("route %s: ignoring scenario %r, its trigger point is too far from the route",
                         setup.route.id, config.name)
+            dropped.append((config.name, "its trigger point is not within 2 m and 10 degrees of the route"))
             continue
         try:
             scenario_class(config.type)(context(config))  # set-up check only; the manager makes its own
         except ScenarioError as exc:
             log.warning("route %s: skipping scenario %r due to a setup error: %s", setup.route.id, config.name, exc)
+            dropped.append((config.name, str(exc)))
             continue
         configs.append(config)
-    return ScenarioManager(context, configs, skip_failed_builds=setup.skip_failed_builds)
+    manager = ScenarioManager(context, configs, skip_failed_builds=setup.skip_failed_builds)
+    manager.skipped.extend(dropped)
+    return manager
 
 
 @dataclass(frozen=True)

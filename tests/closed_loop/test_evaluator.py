@@ -16,9 +16,11 @@ from b2d_data.cli import eval as eval_cli
 from b2d_data.closed_loop import REFERENCE_AGENTS
 from b2d_data.closed_loop.evaluator import EvalConfig, EvalError, plan_evaluation, run_evaluation, task_seed
 from b2d_data.format import leaderboard as lb
+from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.scenarios.route_xml import Route, ScenarioConfig, write_routes
 
 from ..conftest import assert_all_exit, descendants, sigint_default
-from .conftest import BEHAVIOUR_AGENT, short_routes
+from .conftest import BEHAVIOUR_AGENT, STRAIGHT, short_routes
 
 
 def _records(out: Path) -> dict[str, dict]:
@@ -225,15 +227,18 @@ def test_a_route_over_its_tick_limit_ends_as_tick_runtime(tmp_path):
 
 
 def test_a_scenario_that_cannot_be_spawned_is_skipped_and_the_route_goes_on(tmp_path):
-    # bench2drive220 route 26944 (Town04): OppositeVehicleRunningRedLight at junction 1452, which has no traffic light
-    # in Town04's OpenDRIVE file (CARLA places those lights from its Unreal level). The Leaderboard's build_scenarios
-    # skips a scenario it cannot build; the expert then drives the plain route to its end.
-    result = run_evaluation(EvalConfig(agent=REFERENCE_AGENTS["expert"], routes_file=Path("bench2drive220.xml"),
-                                       route_ids=("26944",), out=tmp_path / "out"))  # fmt: skip
+    # OppositeVehicleRunningRedLight on a 30 m junction-free stretch of Town01: no junction to run the light at. The
+    # Leaderboard's build_scenarios skips a scenario it cannot build; the expert then drives the plain route to its end.
+    scenario = ScenarioConfig("OppositeVehicleRunningRedLight_1", "OppositeVehicleRunningRedLight",
+                              Transform(STRAIGHT[0] + Location(2.0, 0.0, 0.0), Rotation(yaw=0.0)),
+                              {"direction": {"value": "right"}})  # fmt: skip
+    routes = tmp_path / "routes.xml"
+    write_routes([Route(id="1", town="Town01", waypoints=STRAIGHT, scenarios=(scenario,))], routes)
+    result = run_evaluation(EvalConfig(agent=REFERENCE_AGENTS["expert"], routes_file=routes, out=tmp_path / "out"))
     (record,) = result.records
     assert record.status == lb.STATUS_COMPLETED
     detail = record.extra["b2d_eval"]["detail"]
-    assert "skipped scenario OppositeVehicleRunningRedLight_1" in detail and "junction 1452" in detail
+    assert "skipped scenario OppositeVehicleRunningRedLight_1" in detail and "enters no junction" in detail
 
 
 @pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])

@@ -17,12 +17,24 @@ from b2d_data.scenarios.catalog.road_geometry import (
     yaw_diff,
 )
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError
+from b2d_data.scenarios.route import DenseRoute
 from b2d_data.sim.api import Simulator, Snapshot, TrafficLightInfo, TrafficLightState
 
 log = logging.getLogger(__name__)
 
 #: How far after the trigger point (along the route) a junction scenario looks for its junction (m).
 JUNCTION_SEARCH = 100.0
+
+
+def junction_entry(route: DenseRoute, trigger_index: int) -> int | None:
+    """Index of the first route point inside a junction within :data:`JUNCTION_SEARCH` m after the trigger."""
+    s = route.cumulative_length
+    for j in range(trigger_index, len(route.waypoints)):
+        if s[j] - s[trigger_index] > JUNCTION_SEARCH:
+            return None
+        if route.waypoints[j].is_junction:
+            return j
+    return None
 
 
 class JunctionScenario(Scenario):
@@ -33,18 +45,14 @@ class JunctionScenario(Scenario):
     """
 
     required_turn: ClassVar[tuple[str, ...]] = ()
+    #: The scenario needs traffic lights at its junction (``b2d_data.scenarios.junction_signals`` adds CARLA-style
+    #: ones where the OpenDRIVE file has none).
+    signalized: ClassVar[bool] = False
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         route = ctx.route
-        s = route.cumulative_length
-        entry = None
-        for j in range(self.trigger_index, len(route.waypoints)):
-            if s[j] - s[self.trigger_index] > JUNCTION_SEARCH:
-                break
-            if route.waypoints[j].is_junction:
-                entry = j
-                break
+        entry = junction_entry(route, self.trigger_index)
         if entry is None:
             raise ScenarioSetupError(
                 f"{self.name}: layout missing: the route enters no junction within {JUNCTION_SEARCH:.0f} m of the "

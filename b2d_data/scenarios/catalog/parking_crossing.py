@@ -4,6 +4,13 @@ A car stands parked (hand brake) in the ``direction``-side parking lane ``distan
 pedestrian appears just in front of it (car half length + 0.5 m), facing the road (turned by ``crossing_angle``),
 when the ego's time to arrival at the lane point abreast of it drops below ``2.15 + 0.1 × floor(angle / 5)`` s (or
 within 6 m). It walks 8 m at 2 m/s across the ego's lane and is removed with the car; the scenario ends 40 m later.
+
+Placement accepts what LB2.0's ``_initialize_actors`` accepts (``object_crash_vehicle.py``, ParkingCrossingPedestrian):
+the lane point ``distance`` m on may be anywhere, a junction included, and the car and the walker stand one lane
+width to the side of the driving lane, whatever lies there. Where there is a parking lane, the car stands at its
+centre and the walker abreast of it, as before; without one (evaluation routes of towns whose streets have none),
+LB2.0's rule applies. Generated routes are always placed at a parking lane away from junctions
+(``placement.py``), so the fallback only serves evaluation XML routes.
 """
 
 from __future__ import annotations
@@ -44,30 +51,25 @@ class ParkingCrossingPedestrian(Scenario):
             raise ScenarioSetupError(f"{self.name}: direction must be 'left' or 'right', got {self.direction!r}")
         self.crossing_angle = ctx.value("crossing_angle", 0.0)
         self.sign = 1.0 if self.direction == "right" else -1.0
+        # LB2.0: ``reference_waypoint.next(distance)[0]``, refused only where the lane has no continuation.
         wp = move_along(self.trigger_waypoint, self.distance)
-        if wp is None or wp.is_junction:
-            raise ScenarioSetupError(
-                f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point"
-            )
-        parking = neighbour(wp, self.direction)
-        if parking is None or not parking.lane_type & LaneType.PARKING:
-            raise ScenarioSetupError(
-                f"{self.name}: layout 'parking_lane' missing: no parking lane to the {self.direction} of road "
-                f"{wp.road_id} lane {wp.lane_id} {self.distance:.0f} m after the trigger point"
-            )
+        if wp is None:
+            raise ScenarioSetupError(f"{self.name}: the lane ends within {self.distance:.0f} m of the trigger point")
+        side = neighbour(wp, self.direction)
         self.lane_waypoint = wp
-        self.parking = parking
+        #: The parking lane the car stands in; None: one lane width to the side (LB2.0's ``_get_blocker_transform``).
+        self.parking = side if side is not None and side.lane_type & LaneType.PARKING else None
         self.car_model = random_parked_car(ctx.rng)
         car_half_length = half_extent(self.car_model)[0]
         ahead = move_along(wp, car_half_length + 0.5)
-        if ahead is None or ahead.is_junction:
+        if ahead is None:
             raise ScenarioSetupError(f"{self.name}: the lane ends in front of the parked car")
         self.collision_waypoint = ahead
-        walker_spot = neighbour(ahead, self.direction)
+        walker_spot = neighbour(ahead, self.direction) if self.parking is not None else None
         self.walker_lateral = self.sign * (
             ahead.transform.location.distance_2d(walker_spot.transform.location)
             if walker_spot is not None
-            else 0.5 * (ahead.lane_width + parking.lane_width)
+            else ahead.lane_width  # LB2.0's ``_get_walker_transform``: one lane width of the walker's lane point
         )
         self.car: int | None = None
         self.walker: int | None = None
@@ -79,9 +81,13 @@ class ParkingCrossingPedestrian(Scenario):
         self._after = DriveDistance(self.end_distance)
 
     def build(self) -> None:
-        """The parked car in the parking lane."""
-        transform = offset_transform(self.parking, z=0.05)
-        retries = [offset_transform(self.parking, forward=f, z=0.05) for f in (-1.0, 1.0)]
+        """The parked car in the parking lane, else one lane width to the side of the driving lane."""
+        if self.parking is not None:
+            base, lateral = self.parking.transform, 0.0
+        else:
+            base, lateral = self.lane_waypoint.transform, self.sign * self.lane_waypoint.lane_width
+        transform = offset_transform(base, lateral=lateral, z=0.05)
+        retries = [offset_transform(base, lateral=lateral, forward=f, z=0.05) for f in (-1.0, 1.0)]
         self.car = self.spawn(self.car_model, transform, retries=retries)
         park(self.ctx.sim, self.car)
 

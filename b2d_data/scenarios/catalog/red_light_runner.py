@@ -37,6 +37,7 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
     """An ambulance with sirens runs a red light across the ego's path."""
 
     xml_type = "OppositeVehicleRunningRedLight"
+    signalized = True
     scenario_timeout = None
     timeout_test = False
     source_distance = 30.0

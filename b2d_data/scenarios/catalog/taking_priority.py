@@ -20,6 +20,7 @@ class OppositeVehicleTakingPriority(OppositeVehicleRunningRedLight):
     """A car takes priority over the ego at an unsignalised junction."""
 
     xml_type = "OppositeVehicleTakingPriority"
+    signalized = False
 
     def build(self) -> None:
         """Check that the junction has no traffic light."""

@@ -52,6 +52,8 @@ class ScheduledLightsTurn(VanillaJunctionTurn):
     junction's cycle ran on meanwhile, and each light keeps its restored state until that cycle next changes stage.
     """
 
+    signalized = True
+
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.lights: LightSchedule | None = None

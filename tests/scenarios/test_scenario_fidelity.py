@@ -132,3 +132,41 @@ def test_dynamic_object_crossing_default_blocker_is_the_vending_machine(town):
     # object_crash_vehicle.py DynamicObjectCrossing: blocker_model 'static.prop.vendingmachine'
     _, _, scenario = build(town, "DynamicObjectCrossing", drop=("blocker_model",))
     assert scenario.blocker_model == "static.prop.vendingmachine"
+
+
+# ------------------------------------------------------------------------------------------------ actor placement
+
+
+def _scenarios(town, scenario_type: str, n: int):
+    for route in make_routes(town, scenario_type, n, seed=0):
+        dense = DenseRoute.from_route(town, route)
+        ctx = ScenarioContext(sim=None, map=town, route=dense, config=route.scenarios[0],  # type: ignore[arg-type]
+                              rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+        yield scenario_class(scenario_type)(ctx)
+
+
+def test_the_turning_route_pedestrian_starts_on_the_side_away_from_the_turn(town):
+    # object_crash_intersection.py VehicleTurningRoutePedestrian: spawn at right_wp if (entry x exit).z < 0 (a left
+    # turn, scenario_helper.py) else at left_wp: a right turn puts the walker left of the exit lane (our lateral
+    # offsets are + right, so < 0), a left turn right of it (> 0)
+    turns = set()
+    for scenario in _scenarios(town, "VehicleTurningRoutePedestrian", 6):
+        turns.add(scenario.ego_turn)
+        if scenario.ego_turn == "right":
+            assert scenario.start_lateral < 0.0
+        else:
+            assert scenario.start_lateral > 0.0
+    assert turns == {"left", "right"}
+
+
+def test_pedestrian_crossing_walkers_stand_past_the_last_lane_point(town):
+    # pedestrian_crossing.py: each walker's spawn point is the sidewalk point moved forward by 0.4, 1.0 and 1.6 m,
+    # toward the junction, not back from it
+    (scenario,) = _scenarios(town, "PedestrianCrossing", 1)
+    origin = scenario.collision_waypoint.transform
+    f = origin.get_forward_vector()
+    along = [
+        (w.transform.location.x - origin.location.x) * f.x + (w.transform.location.y - origin.location.y) * f.y
+        for w in scenario.walkers
+    ]
+    assert along == pytest.approx([0.4, 1.0, 1.6], abs=1e-6)

@@ -274,7 +274,8 @@ def test_issue14_scenario_defining_event(town, scenario_type):
     if scenario_type == "OppositeVehicleTakingPriority":
         (car,) = vehicles
         assert car.max_speed == pytest.approx(60 / 3.6, abs=0.3)
-        assert blueprints.find(car.type_id).special_type == ""  # an ordinary car, not an emergency vehicle
+        # LB2.0 spawns special_type 'emergency' here as for the red-light runner (one shared _initialize_actors)
+        assert blueprints.find(car.type_id).special_type == "emergency"
     if scenario_type == "ParkingCrossingPedestrian":
         (parked,) = vehicles
         assert parked.max_speed < 0.1 and LaneType.PARKING in parked.lane_types
@@ -484,3 +485,25 @@ def test_the_door_scenario_flow_comes_from_behind_in_the_ego_lane(town):
     # spawned behind the parked car (on the route's own lane, or behind the route's start on that lane)
     assert all(s < parked[0] - 10.0 for s in first_seen.values())
 
+
+
+@pytest.mark.parametrize("scenario_type", ("OppositeVehicleRunningRedLight", "OppositeVehicleTakingPriority"))
+def test_the_junction_crossing_adversary_is_an_emergency_vehicle_with_sirens(town, scenario_type):
+    # LB2.0 opposite_vehicle_taking_priority.py, _initialize_actors (shared by both types): a vehicle with
+    # attribute special_type == 'emergency' with its sirens on (Special1 | Special2 there; the annotations' light_state
+    # string of such a combination is unknown, so ours sets Special1, the siren flag, alone)
+    from b2d_data.scenarios.catalog.actor_choices import SIREN_LIGHTS, emergency_vehicle_ids
+
+    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    seen: dict[int, tuple[str, str]] = {}
+
+    def watch(snap, dense, manager):
+        for a in snap.actors.values():
+            if a.role_name == SCENARIO_ROLE and a.kind is ActorKind.VEHICLE:
+                seen.setdefault(a.id, (a.type_id, a.light_state))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert len(seen) == 1
+    type_id, light_state = next(iter(seen.values()))
+    assert type_id in emergency_vehicle_ids() and light_state == SIREN_LIGHTS == "Special1"

@@ -10,7 +10,6 @@ from b2d_data.sim import blueprints
 #: The police car of the Accident scenario.
 POLICE_CAR = "vehicle.dodge.charger_police_2020"
 #: The adversary of the red-light runner scenario.
-AMBULANCE = "vehicle.ford.ambulance"
 #: Warning sign near an accident or a parked obstacle.
 WARNING_ACCIDENT = "static.prop.warningaccident"
 #: Construction site props (LB2.0 ConstructionObstacle): the sign at the road's edge, the board on the lane,

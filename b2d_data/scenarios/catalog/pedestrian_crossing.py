@@ -1,7 +1,7 @@
 """PedestrianCrossing (§2.2 #19): a group of three pedestrians crosses the road in front of the ego at a junction.
 
-The walkers stand on the right sidewalk at the last lane point before the junction (offsets along/right of the
-sidewalk (0.4, 1.5), (1, 2.5), (1.6, 0.5) m), facing the road. When the ego's time to arrival at that lane point
+The walkers stand on the right sidewalk by the last lane point before the junction (offsets toward the junction /
+right of the sidewalk (0.4, 1.5), (1, 2.5), (1.6, 0.5) m, as LB2.0's), facing the road. When the ego's time to arrival at that lane point
 drops below 3.5 s (or it is within 12 m), each starts after its own random delay (0–1.5 s) at its own speed
 (1.3–2.0 m/s), walks 2.3 × its distance to the lane point across the road and disappears. The ego's entry of the
 junction is cleared of background traffic. The scenario ends when the ego has driven 40 m after the last walker left.
@@ -75,7 +75,8 @@ class PedestrianCrossing(JunctionScenario):
         for forward, right in self.walker_offsets:
             # keep each walker on the sidewalk (the offsets are CARLA's, for its wider sidewalks)
             lateral = side + max(-half + 0.3, min(half - 0.3, right - 1.5))
-            t = offset_transform(self.collision_waypoint, lateral=lateral, forward=-forward, z=1.0, yaw=270.0)
+            # LB2.0 (pedestrian_crossing.py) steps each walker ``forward`` m past the last lane point, toward the junction
+            t = offset_transform(self.collision_waypoint, lateral=lateral, forward=forward, z=1.0, yaw=270.0)
             delay = float(ctx.rng.uniform(0.0, self.max_delay))
             speed = float(ctx.rng.uniform(*self.speed_range))
             distance = self.walk_factor * horizontal_distance(t.location, centre)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from b2d_data.format.transform import Location
-from b2d_data.scenarios.catalog.actor_choices import AMBULANCE, SIREN_LIGHTS
+from b2d_data.scenarios.catalog.actor_choices import SIREN_LIGHTS, random_emergency_vehicle
 from b2d_data.scenarios.catalog.junctions import (
     JunctionScenario,
     LightSchedule,
@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 @register
 class OppositeVehicleRunningRedLight(JunctionScenario):
-    """An ambulance with sirens runs a red light across the ego's path."""
+    """An emergency vehicle with sirens runs a red light across the ego's path."""
 
     xml_type = "OppositeVehicleRunningRedLight"
     signalized = True
@@ -104,14 +104,22 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
             clear_junction=True, clear_ego_entry=True, remove_entries=[self.spawn_waypoint],
             remove_exits=[self.sink_waypoint], stop_entries=False, extend_road_exit=0.0,
         )  # fmt: skip
-        transforms = [offset_transform(self.spawn_waypoint, forward=f, z=0.2) for f in (0.0, -2.0, -4.0, 2.0)]
-        self.adversary = self.spawn(AMBULANCE, transforms[0], retries=transforms[1:])
-        self.ctx.sim.set_light_state(self.adversary, SIREN_LIGHTS)
-        park(self.ctx.sim, self.adversary)
+        self.spawn_adversary()
         lights = self.require_lights(snapshot)
         states = light_states(lights, lights_of_lane(lights, self.ego_entry))
         self.lights = LightSchedule(self.ctx.sim, [(states, None)])
         self.lights.update(snapshot)
+
+    def spawn_adversary(self) -> None:
+        """A seeded emergency vehicle with its sirens on at the source, parked until the trigger.
+
+        LB2.0's ``_initialize_actors`` (opposite_vehicle_taking_priority.py), shared by both junction-crossing types,
+        requests any ``special_type='emergency'`` vehicle and turns its special lights on.
+        """
+        transforms = [offset_transform(self.spawn_waypoint, forward=f, z=0.2) for f in (0.0, -2.0, -4.0, 2.0)]
+        self.adversary = self.spawn(random_emergency_vehicle(self.ctx.rng), transforms[0], retries=transforms[1:])
+        self.ctx.sim.set_light_state(self.adversary, SIREN_LIGHTS)
+        park(self.ctx.sim, self.adversary)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Wait for the ego's time to arrival, let the adversary cross, then wait for the ego to leave the junction."""

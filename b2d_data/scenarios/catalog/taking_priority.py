@@ -2,15 +2,13 @@
 
 The red-light runner's behaviour (adversary 30 m before the junction on the ``direction`` entry, TTA trigger
 (2.2 s, 12 m) at the conflict point, straight crossing at 60 km/h ignoring everything, removed 10 m past its exit)
-at a junction without lights, with an ordinary car instead of an ambulance and the junction entries stopped.
+at a junction without lights, with the junction entries stopped; the adversary is an emergency vehicle with its
+sirens on, as in LB2.0 (both types share one ``_initialize_actors`` there).
 """
 
 from __future__ import annotations
 
-from b2d_data.scenarios.catalog.actor_choices import random_parked_car
 from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
-from b2d_data.scenarios.catalog.road_geometry import offset_transform
-from b2d_data.scenarios.controllers import park
 from b2d_data.scenarios.framework import ScenarioSetupError, register
 from b2d_data.sim.api import Snapshot
 
@@ -35,9 +33,7 @@ class OppositeVehicleTakingPriority(OppositeVehicleRunningRedLight):
             clear_junction=True, clear_ego_entry=True, remove_entries=[self.spawn_waypoint],
             remove_exits=[self.sink_waypoint], stop_entries=True, extend_road_exit=0.0,
         )  # fmt: skip
-        transforms = [offset_transform(self.spawn_waypoint, forward=f, z=0.2) for f in (0.0, -2.0, -4.0, 2.0)]
-        self.adversary = self.spawn(random_parked_car(self.ctx.rng), transforms[0], retries=transforms[1:])
-        park(self.ctx.sim, self.adversary)
+        self.spawn_adversary()
 
     def on_end(self) -> None:
         """No lights to release."""

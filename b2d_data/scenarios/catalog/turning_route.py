@@ -1,7 +1,7 @@
 """VehicleTurningRoutePedestrian and VehicleTurningRoute (§2.2 #20, #21): someone crosses the road the ego turns into.
 
-VehicleTurningRoutePedestrian: a pedestrian stands on the exit road's sidewalk just past the junction (right side
-for a right turn, left side for a left turn), facing across; when the ego's time to arrival at the first exit-lane
+VehicleTurningRoutePedestrian: a pedestrian stands on the exit road's sidewalk just past the junction (left side
+for a right turn, right side for a left turn, as LB2.0's), facing across; when the ego's time to arrival at the first exit-lane
 point (+0.5 m) drops below 2.2 s (or within 6 m) it walks across the whole exit road at 1.8 m/s and is removed.
 VehicleTurningRoute: a bicycle on the right side of the exit road 11 m after the first exit point, facing the
 road; TTA (1.8 s, 6 m) on that lane point; it crosses at 1.8 m/s for twice its distance to the lane point and is
@@ -101,7 +101,9 @@ class VehicleTurningRoutePedestrian(_TurningRouteScenario):
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.collision_waypoint = self.lane_point(0.5)
-        side = self.ego_turn
+        # LB2.0 (object_crash_intersection.py) starts the walker at right_wp when entry × exit has z < 0 (a left
+        # turn) and at left_wp otherwise: always the side of the exit road away from the turn's inner corner
+        side = "left" if self.ego_turn == "right" else "right"
         self.start_lateral = road_side_offset(self.collision_waypoint, side)
         other = road_side_offset(self.collision_waypoint, "left" if side == "right" else "right")
         self.walk_distance = abs(self.start_lateral - other)

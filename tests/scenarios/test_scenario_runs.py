@@ -507,3 +507,52 @@ def test_the_junction_crossing_adversary_is_an_emergency_vehicle_with_sirens(tow
     assert len(seen) == 1
     type_id, light_state = next(iter(seen.values()))
     assert type_id in emergency_vehicle_ids() and light_state == SIREN_LIGHTS == "Special1"
+
+
+#: Actors LB2.0 keeps 200 m underground from build to the trigger (type -> type_id prefixes of those actors), and the
+#: walkers it places at the trigger rather than at time to arrival.
+APPEAR_AT_TRIGGER = {
+    "ConstructionObstacle": ("static.prop.trafficwarning", "static.prop.dirtdebris", "static.prop.constructioncone"),
+    "ConstructionObstacleTwoWays": ("static.prop.trafficwarning", "static.prop.dirtdebris",
+                                    "static.prop.constructioncone"),
+    "InvadingTurn": ("static.prop.constructioncone",),
+    "HighwayCutIn": ("vehicle.",),
+    "PedestrianCrossing": ("walker.",),
+    "VehicleTurningRoutePedestrian": ("walker.",),
+    "DynamicObjectCrossing": ("walker.",),
+    "ParkingCrossingPedestrian": ("walker.",),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("scenario_type", sorted(APPEAR_AT_TRIGGER))
+def test_hidden_actors_appear_at_the_trigger(town, scenario_type):
+    # construction_crash_vehicle.py, invading_turn.py, highway_cut_in.py, pedestrian_crossing.py and
+    # object_crash_intersection.py spawn these at build at z - 200 and move them into place at the trigger;
+    # object_crash_vehicle.py places the DynamicObjectCrossing / ParkingCrossingPedestrian walker at the trigger
+    # (it starts walking at time to arrival). So none exists before the tick the scenario starts, all exist from it.
+    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    prefixes = APPEAR_AT_TRIGGER[scenario_type]
+    first_seen: dict[int, int] = {}
+    speeds: dict[int, list[float]] = {}
+    trigger_tick: list[int] = []
+    frames: list[int] = []
+
+    def watch(snap, dense, manager):
+        frames.append(snap.frame)
+        if manager.active and not trigger_tick:
+            trigger_tick.append(snap.frame)
+        for a in snap.actors.values():
+            if a.role_name == SCENARIO_ROLE and a.type_id.startswith(prefixes):
+                first_seen.setdefault(a.id, snap.frame)
+                speeds.setdefault(a.id, []).append(a.speed())
+
+    trace = run_scripted(town, route, speed=5.0, on_tick=watch)
+    assert trace.statuses and trigger_tick
+    assert first_seen, "no such actor appeared"
+    # built on the first tick, triggered later: actors spawned at build would show before the trigger
+    assert trigger_tick[0] > frames[0]
+    assert set(first_seen.values()) == {trigger_tick[0]}, (trigger_tick, first_seen)
+    if scenario_type in ("DynamicObjectCrossing", "ParkingCrossingPedestrian"):
+        # it stands from the trigger until the time-to-arrival trigger, a few seconds later at 5 m/s
+        (walker,) = speeds.values()
+        assert walker[0] == 0.0 and sum(1 for v in walker if v < 0.01) >= 20

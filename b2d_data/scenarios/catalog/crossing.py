@@ -2,9 +2,10 @@
 
 A blocker prop (``blocker_model``: advertisement or container on generated routes, LB2.0's vending machine when
 the XML gives none; turned 90°) stands ``distance`` m ahead on the ``direction``-side
-sidewalk; the pedestrian appears just beyond it facing the road (turned by ``crossing_angle``) when the ego's time
-to arrival at the lane point abreast of it drops below ``2.1 + 0.1 × floor(angle / 5)`` s (or within 6 m), walks at
-2 m/s for twice its distance to that point, and is removed with the blocker. The scenario ends 40 m later.
+sidewalk; at the trigger the pedestrian appears just beyond it facing the road (turned by ``crossing_angle``) and
+stands there (as LB2.0 places it); when the ego's time to arrival at the lane point abreast of it drops below
+``2.1 + 0.1 × floor(angle / 5)`` s (or within 6 m) it walks at 2 m/s for twice its distance to that point, and is
+removed with the blocker. The scenario ends 40 m later.
 """
 
 from __future__ import annotations
@@ -88,17 +89,27 @@ class DynamicObjectCrossing(Scenario):
         self.blocker = self.spawn(self.blocker_model, transform, retries=retries)
 
     def start(self, snapshot: Snapshot) -> None:
-        """Keep the background away from the crossing."""
+        """Keep the background away from the crossing; the walker takes its place (object_crash_vehicle.py)."""
         self.ctx.sim.background.leave_space_in_front(self.distance + 10.0)
+        self._spawn_walker()
+
+    def _walker_yaw(self) -> float:
+        return 270.0 - self.crossing_angle if self.direction == "right" else 90.0 + self.crossing_angle
 
     def _spawn_walker(self) -> None:
-        yaw = 270.0 - self.crossing_angle if self.direction == "right" else 90.0 + self.crossing_angle
+        """The walker, standing where it will step out from, facing the road (LB2.0 places it there at the trigger)."""
+        yaw = self._walker_yaw()
         base = self.collision_waypoint
         candidates = [
             offset_transform(base, lateral=self.blocker_lateral, forward=k * self.retry_step, z=1.0, yaw=yaw)
             for k in range(self.spawn_retries)
         ]
         self.walker = self.spawn(random_walker(self.ctx.rng), candidates[0], retries=candidates[1:])
+
+    def _start_walk(self) -> None:
+        assert self.walker is not None  # spawned by start()
+        base = self.collision_waypoint
+        yaw = self._walker_yaw()
         heading = math.radians(base.transform.rotation.yaw + yaw)
         to_lane = abs(self.blocker_lateral)
         self._walk = WalkerController(
@@ -116,7 +127,7 @@ class DynamicObjectCrossing(Scenario):
             return ScenarioStatus.RUNNING
         if self._walk is None:
             if self._tta.check(ego):
-                self._spawn_walker()
+                self._start_walk()
             return ScenarioStatus.RUNNING
         if not self._removed:
             self._walk.run_step(snapshot)

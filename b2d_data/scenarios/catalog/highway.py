@@ -123,22 +123,21 @@ class HighwayCutIn(JunctionScenario):
         self.cut_in_speed = 0.0
         self._seen = False
 
-    def build(self) -> None:
-        """Spawn the car on the ramp and hold it there."""
+    def start(self, snapshot: Snapshot) -> None:
+        """Clear the merge, remove the ramp from background traffic, keep the road ahead free; start the approach.
+
+        The car appears on the ramp now: LB2.0 spawns it at build 200 m underground and lifts it at the trigger
+        (highway_cut_in.py).
+        """
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=False, remove_entries=[self.path[0]], remove_exits=[],
+            stop_entries=False, extend_road_exit=EXTRA_SPACE,
+        )  # fmt: skip
         spec = blueprints.random_background_car(self.ctx.rng, role_name=SCENARIO_ROLE)
         t = self.start_wp.transform
         transform = Transform(Location(t.location.x, t.location.y, t.location.z + 0.2), Rotation(yaw=t.rotation.yaw))
         self.actor_id = self.spawn(spec.type_id, transform, spec.attributes)
         park(self.ctx.sim, self.actor_id)
-
-    def start(self, snapshot: Snapshot) -> None:
-        """Clear the merge, remove the ramp from background traffic, keep the road ahead free; start the approach."""
-        self.ctx.sim.background.handle_junction_scenario(
-            clear_junction=True, clear_ego_entry=False, remove_entries=[self.path[0]], remove_exits=[],
-            stop_entries=False, extend_road_exit=EXTRA_SPACE,
-        )  # fmt: skip
-        if self.actor_id is None:
-            return
         self.agent = ConstantVelocityAgent(self.ctx.sim, self.actor_id, self.track, 0.0, resume_accel=8.0)
         self.phase = _Phase.SYNC
 

@@ -83,13 +83,13 @@ class InvadingTurn(Scenario):
         """Cones toward the opposite lane's outer edge, from the one nearest the source toward the ego."""
         return [offset_transform(wp, lateral=self.cone_side * wp.lane_width) for wp in self.cone_waypoints]
 
-    def build(self) -> None:
-        """The cones."""
+    def _put_up_cones(self) -> None:
+        """The cones, spawned at the trigger: LB2.0 keeps them 200 m underground until then (invading_turn.py)."""
         for transform in self.cone_transforms():
             self.cones.append(self.spawn(CONSTRUCTION_CONE, transform))
 
     def start(self, snapshot: Snapshot) -> None:
-        """Empty the ego's lane and the opposite traffic, start the invading flow.
+        """Empty the ego's lane and the opposite traffic, put up the cones, start the invading flow.
 
         The flow cars stop only for a box inside their swept path (no margin): the ego keeping right leaves them
         a few tenths of a metre, and with a margin each would stop before it and wait for ever.
@@ -107,6 +107,7 @@ class InvadingTurn(Scenario):
         bg = self.ctx.sim.background
         bg.remove_road_lane(self.trigger_waypoint)
         bg.change_opposite_behavior(active=False)
+        self._put_up_cones()
         self._started = True
         limit = self.ctx.map.speed_limit(self.trigger_waypoint)
         self._flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.flow_waypoints, limit / 3.6,

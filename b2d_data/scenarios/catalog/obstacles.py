@@ -355,19 +355,32 @@ class ConstructionSite(RoadObstacle):
         return out
 
     def build(self) -> None:
-        """Construction warning sign at the road's edge, the board, the debris and the cones."""
+        """Construction warning sign at the road's edge (the site itself appears at the trigger)."""
         self.spawn_warning_sign(WARNING_CONSTRUCTION)
-        self.first_id = self.spawn(TRAFFIC_WARNING, offset_transform(self._board_waypoint, yaw=180.0))
-        debris = move_along(self.obstacle_waypoint, self.debris_after) or self.obstacle_waypoint
-        self.spawn(DEBRIS, offset_transform(debris))
-        for transform in self.cone_transforms():
-            self.last_id = self.spawn(CONSTRUCTION_CONE, transform)
 
     def start(self, snapshot: Snapshot) -> None:
-        """Clear the stretch and take the ego's lane out of the background traffic."""
+        """Clear the stretch, take the ego's lane out of the background traffic, put the site up.
+
+        LB2.0 spawns the board, the debris and the cones at build 200 m underground and lifts them into place at
+        the trigger (construction_crash_vehicle.py); here they are spawned at the trigger, once the stretch is clear.
+        """
         super().start(snapshot)
         self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
         self._removed_lane = True
+        board = offset_transform(self._board_waypoint, yaw=180.0)
+        self.first_id = self.spawn(TRAFFIC_WARNING, board, retries=[offset_transform(board, forward=-1.0)])
+        debris = move_along(self.obstacle_waypoint, self.debris_after) or self.obstacle_waypoint
+        self._spawn_prop(DEBRIS, offset_transform(debris))
+        for transform in self.cone_transforms():
+            self.last_id = self._spawn_prop(CONSTRUCTION_CONE, transform) or self.last_id
+
+    def _spawn_prop(self, type_id: str, transform: Transform) -> int | None:
+        """One prop of the site; a place taken at the trigger (a car on the lane edge) leaves that prop out."""
+        try:
+            return self.spawn(type_id, transform)
+        except ScenarioSetupError as exc:
+            log.warning("%s: %s", self.name, exc)
+            return None
 
     def on_end(self) -> None:
         """Give the lane back to the background traffic."""

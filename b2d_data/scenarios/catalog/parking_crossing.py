@@ -1,9 +1,10 @@
 """ParkingCrossingPedestrian (§2.2 #15): a pedestrian steps out into the road from in front of a parked car.
 
 A car stands parked (hand brake) in the ``direction``-side parking lane ``distance`` m after the trigger; the
-pedestrian appears just in front of it (car half length + 0.5 m), facing the road (turned by ``crossing_angle``),
-when the ego's time to arrival at the lane point abreast of it drops below ``2.15 + 0.1 × floor(angle / 5)`` s (or
-within 6 m). It walks 8 m at 2 m/s across the ego's lane and is removed with the car; the scenario ends 40 m later.
+pedestrian appears at the trigger just in front of it (car half length + 0.5 m), facing the road (turned by
+``crossing_angle``), and stands there until the ego's time to arrival at the lane point abreast of it drops below
+``2.15 + 0.1 × floor(angle / 5)`` s (or within 6 m). It then walks 8 m at 2 m/s across the ego's lane and is removed
+with the car; the scenario ends 40 m later.
 
 Placement accepts what LB2.0's ``_initialize_actors`` accepts (``object_crash_vehicle.py``, ParkingCrossingPedestrian):
 the lane point ``distance`` m on may be anywhere, a junction included, and the car and the walker stand one lane
@@ -92,16 +93,26 @@ class ParkingCrossingPedestrian(Scenario):
         park(self.ctx.sim, self.car)
 
     def start(self, snapshot: Snapshot) -> None:
-        """Keep the background away from the crossing."""
+        """Keep the background away from the crossing; the walker takes its place (object_crash_vehicle.py)."""
         self.ctx.sim.background.leave_space_in_front(self.distance + self.clear_extra)
+        self._spawn_walker()
+
+    def _walker_yaw(self) -> float:
+        return 270.0 - self.crossing_angle if self.direction == "right" else 90.0 + self.crossing_angle
 
     def _spawn_walker(self) -> None:
-        yaw = 270.0 - self.crossing_angle if self.direction == "right" else 90.0 + self.crossing_angle
+        """The walker, standing where it will step out from, facing the road (LB2.0 places it there at the trigger)."""
+        yaw = self._walker_yaw()
         base = self.collision_waypoint
         candidates = [
             offset_transform(base, lateral=self.walker_lateral, forward=f, z=1.0, yaw=yaw) for f in (0.0, 0.4, 0.8, 1.2)
         ]
         self.walker = self.spawn(random_walker(self.ctx.rng), candidates[0], retries=candidates[1:])
+
+    def _start_walk(self) -> None:
+        assert self.walker is not None  # spawned by start()
+        base = self.collision_waypoint
+        yaw = self._walker_yaw()
         heading = math.radians(base.transform.rotation.yaw + yaw)
         self._walk = WalkerController(
             self.ctx.sim, self.walker, Vector3D(math.cos(heading), math.sin(heading), 0.0), self.walker_speed,
@@ -115,7 +126,7 @@ class ParkingCrossingPedestrian(Scenario):
             return ScenarioStatus.RUNNING
         if self._walk is None:
             if self._tta.check(ego):
-                self._spawn_walker()
+                self._start_walk()
             return ScenarioStatus.RUNNING
         if not self._removed:
             self._walk.run_step(snapshot)

@@ -1,10 +1,11 @@
 """PedestrianCrossing (§2.2 #19): a group of three pedestrians crosses the road in front of the ego at a junction.
 
-The walkers stand on the right sidewalk by the last lane point before the junction (offsets toward the junction /
-right of the sidewalk (0.4, 1.5), (1, 2.5), (1.6, 0.5) m, as LB2.0's), facing the road. When the ego's time to arrival at that lane point
-drops below 3.5 s (or it is within 12 m), each starts after its own random delay (0–1.5 s) at its own speed
-(1.3–2.0 m/s), walks 2.3 × its distance to the lane point across the road and disappears. The ego's entry of the
-junction is cleared of background traffic. The scenario ends when the ego has driven 40 m after the last walker left.
+At the trigger the walkers appear on the right sidewalk by the last lane point before the junction (offsets toward
+the junction / right of the sidewalk (0.4, 1.5), (1, 2.5), (1.6, 0.5) m, as LB2.0's), facing the road. When the
+ego's time to arrival at that lane point drops below 3.5 s (or it is within 12 m), each starts after its own random
+delay (0–1.5 s) at its own speed (1.3–2.0 m/s), walks 2.3 × its distance to the lane point across the road and
+disappears. The ego's entry of the junction is cleared of background traffic. The scenario ends when the ego has
+driven 40 m after the last walker left.
 """
 
 from __future__ import annotations
@@ -75,7 +76,8 @@ class PedestrianCrossing(JunctionScenario):
         for forward, right in self.walker_offsets:
             # keep each walker on the sidewalk (the offsets are CARLA's, for its wider sidewalks)
             lateral = side + max(-half + 0.3, min(half - 0.3, right - 1.5))
-            # LB2.0 (pedestrian_crossing.py) steps each walker ``forward`` m past the last lane point, toward the junction
+            # LB2.0 (pedestrian_crossing.py) steps each walker ``forward`` m past the last lane point,
+            # toward the junction
             t = offset_transform(self.collision_waypoint, lateral=lateral, forward=forward, z=1.0, yaw=270.0)
             delay = float(ctx.rng.uniform(0.0, self.max_delay))
             speed = float(ctx.rng.uniform(*self.speed_range))
@@ -85,18 +87,19 @@ class PedestrianCrossing(JunctionScenario):
         self._crossing = False
         self._after = DriveDistance(self.end_distance)
 
-    def build(self) -> None:
-        """The three walkers on the sidewalk."""
-        for w in self.walkers:
-            retries = [offset_transform(w.transform, forward=-f) for f in (0.5, 1.0, 1.5)]
-            w.actor_id = self.spawn(random_walker(self.ctx.rng), w.transform, retries=retries)
-
     def start(self, snapshot: Snapshot) -> None:
-        """Clear the ego's entry of the junction."""
+        """Clear the ego's entry of the junction; the three walkers appear on the sidewalk.
+
+        LB2.0 spawns them at build 200 m underground and lifts them into place at the trigger
+        (pedestrian_crossing.py).
+        """
         self.ctx.sim.background.handle_junction_scenario(
             clear_junction=False, clear_ego_entry=True, remove_entries=[], remove_exits=[], stop_entries=False,
             extend_road_exit=0.0,
         )  # fmt: skip
+        for w in self.walkers:
+            retries = [offset_transform(w.transform, forward=-f) for f in (0.5, 1.0, 1.5)]
+            w.actor_id = self.spawn(random_walker(self.ctx.rng), w.transform, retries=retries)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """TTA trigger → each walker crosses after its delay → removed → 40 m more."""

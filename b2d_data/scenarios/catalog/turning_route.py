@@ -1,8 +1,9 @@
 """VehicleTurningRoutePedestrian and VehicleTurningRoute (§2.2 #20, #21): someone crosses the road the ego turns into.
 
-VehicleTurningRoutePedestrian: a pedestrian stands on the exit road's sidewalk just past the junction (left side
-for a right turn, right side for a left turn, as LB2.0's), facing across; when the ego's time to arrival at the first exit-lane
-point (+0.5 m) drops below 2.2 s (or within 6 m) it walks across the whole exit road at 1.8 m/s and is removed.
+VehicleTurningRoutePedestrian: from the trigger on a pedestrian stands on the exit road's sidewalk just past the
+junction (left side for a right turn, right side for a left turn, as LB2.0's), facing across; when the ego's time to
+arrival at the first exit-lane point (+0.5 m) drops below 2.2 s (or within 6 m) it walks across the whole exit road
+at 1.8 m/s and is removed.
 VehicleTurningRoute: a bicycle on the right side of the exit road 11 m after the first exit point, facing the
 road; TTA (1.8 s, 6 m) on that lane point; it crosses at 1.8 m/s for twice its distance to the lane point and is
 removed. Both end when the ego has driven 40 m more.
@@ -114,8 +115,13 @@ class VehicleTurningRoutePedestrian(_TurningRouteScenario):
         self._walk: WalkerController | None = None
         self._yaw = 270.0 if side == "right" else 90.0
 
-    def build(self) -> None:
-        """The pedestrian on the exit road's sidewalk, facing across."""
+    def start(self, snapshot: Snapshot) -> None:
+        """As the turning scenarios start; the pedestrian appears on the exit road's sidewalk, facing across.
+
+        LB2.0 spawns it at build 200 m underground and lifts it into place at the trigger
+        (object_crash_intersection.py).
+        """
+        super().start(snapshot)
         base = self.collision_waypoint
         candidates = [
             offset_transform(base, lateral=self.start_lateral, forward=f, z=1.0, yaw=self._yaw)

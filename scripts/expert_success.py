@@ -4,7 +4,10 @@ Generated mode (default): for each scenario in SCENARIOS, ``--routes-per-scenari
 generated town presets and the 23 weathers; prints a Markdown table of the success rate (route completed, no
 infraction other than min-speed) with the main failure reasons, and checks the ≥ 90 % bar per scenario.
 
-    python scripts/expert_success.py [--routes-per-scenario 20] [--workers 2] [--out DIR]
+    python scripts/expert_success.py [--routes-per-scenario 20] [--workers 2] [--params bench2drive220] [--out DIR]
+
+``--params`` picks the parameter ranges of the generated routes: ``training`` (LB2.0's routes_training.xml, the
+default) or ``bench2drive220`` (the evaluation routes' narrower ranges).
 
 Route-file mode: the routes of a Leaderboard route file whose scenario type is one of those and whose town has an
 OpenDRIVE file in ``--xodr-dir``; prints one row per route.
@@ -57,7 +60,7 @@ BAR = 0.9
 
 
 def generated_tasks(
-    scenarios: list[str], per_scenario: int, presets: list[str], seed: int, out: Path
+    scenarios: list[str], per_scenario: int, presets: list[str], seed: int, out: Path, params: str = "training"
 ) -> tuple[list[RouteTask], dict[str, str]]:
     """``per_scenario`` routes per scenario, split over the presets that hold its layout; also placement errors."""
     from b2d_data.scenarios import placement
@@ -75,7 +78,7 @@ def generated_tasks(
             share = -(-remaining // len(usable))  # ceil: the first presets take the remainder
             p = usable.pop(0)
             try:
-                routes += [(p, r) for r in placement.make_routes(maps[p], scenario, share, seed)]
+                routes += [(p, r) for r in placement.make_routes(maps[p], scenario, share, seed, params=params)]
                 remaining -= share
                 placed.append(p)
             except placement.PlacementError as exc:
@@ -87,7 +90,7 @@ def generated_tasks(
             p = placed[0]
             have = sum(1 for q, _ in routes if q == p)
             try:
-                more = placement.make_routes(maps[p], scenario, have + remaining, seed)[have:]
+                more = placement.make_routes(maps[p], scenario, have + remaining, seed, params=params)[have:]
                 routes += [(p, r) for r in more]
                 remaining -= len(more)
                 errors.pop(scenario, None)
@@ -173,6 +176,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--xodr-dir", type=Path, default=data.carla_maps_dir(), help="folder of <Town>.xodr (file mode)")
     p.add_argument("--limit", type=int, default=None, help="run at most this many routes of the file")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--params",
+        choices=("training", "bench2drive220"),
+        default="training",
+        help="parameter ranges of generated routes (default training: LB2.0 routes_training.xml)",
+    )
     p.add_argument("--workers", type=int, default=1, help="routes in parallel processes")
     p.add_argument("--out", type=Path, default=None, help="where records and the run log go (default: a temp dir)")
     p.add_argument("-v", "--verbose", action="store_true")
@@ -194,7 +203,9 @@ def main(argv: list[str] | None = None) -> int:
             )
             return 2
     else:
-        tasks, errors = generated_tasks(scenarios, args.routes_per_scenario, args.towns.split(","), args.seed, out)
+        tasks, errors = generated_tasks(
+            scenarios, args.routes_per_scenario, args.towns.split(","), args.seed, out, args.params
+        )
     config = CollectConfig(out=out, sensors=False, workers=args.workers)
     done = 0
 

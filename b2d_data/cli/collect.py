@@ -34,6 +34,8 @@ if TYPE_CHECKING:  # the collection's modules load only when a collection runs (
     from b2d_data.collection.runner import Progress
 
 PROG = "b2d-collect"
+#: ``--params`` values (scenarios.param_ranges.PARAM_SETS, spelled out here to keep --help fast); the first is the default.
+PARAM_SET_NAMES = ("training", "bench2drive220")
 #: Exit status when the targets were not all met (usage errors exit with 2, like argparse).
 EXIT_SHORT = 1
 EXIT_USAGE = 2
@@ -92,6 +94,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="weather preset id (repeatable; default: all 23 for generated routes, the file's own)",
     )
     what.add_argument("--seed", type=int, default=0, help="seed of the route list and of every route (default 0)")
+    what.add_argument(
+        "--params",
+        choices=PARAM_SET_NAMES,
+        default=None,
+        help="parameter ranges of generated routes: training (LB2.0 routes_training.xml, default) or bench2drive220 "
+        "(the evaluation routes' narrower ranges)",
+    )
     how = p.add_argument_group("how")
     how.add_argument(
         "--workers",
@@ -173,6 +182,7 @@ def _config(args: argparse.Namespace):
         lidar_azimuth_steps=args.lidar_azimuth_steps, format_version=FormatVersion(args.format_version),
         sensors=not args.no_sensors, encode_workers=encode_workers,
         attempts_per_clip=args.attempts_per_clip, ray_address=args.ray,
+        params=args.params or PARAM_SET_NAMES[0],
     )  # fmt: skip
 
 
@@ -187,6 +197,8 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
         parser.error("--attempts-per-clip must be at least 1")
     if args.encode_workers is not None and args.encode_workers < 0:
         parser.error("--encode-workers must be 0 or more")
+    if args.params is not None and args.routes is not None:
+        parser.error("--params sets the ranges of generated routes; --routes runs the file's own parameters")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -80,6 +80,8 @@ class CollectConfig:
     attempts_per_clip: int = 3
     #: Ray cluster address (``auto`` or ``host:port``); None runs on this machine.
     ray_address: str | None = None
+    #: Parameter ranges of generated routes (``training`` or ``bench2drive220``, see scenarios.param_ranges).
+    params: str = "training"
 
     def rig(self) -> RigConfig:
         """The sensor rig of this collection (top-down camera at the surround cameras' size)."""

@@ -46,7 +46,7 @@ PLANNED_ROUTES_DIR = "routes"
 #: The settings a resumed collection must share with the one it continues.
 #: Settings that change what a route produces; a resume with other values would mix incompatible clips.
 FIXED_SETTINGS = ("seed", "town", "xodr", "routes_file", "weathers", "width", "height", "lidar_azimuth_steps",
-                   "format_version", "sensors")  # fmt: skip
+                   "format_version", "sensors", "params")  # fmt: skip
 
 
 class CollectError(Exception):
@@ -171,7 +171,7 @@ def _generated_plan(config: CollectConfig) -> CollectionPlan:
         # The list for the full budget; a town with fewer places still gets the routes the target needs.
         for count in dict.fromkeys((budget, config.n)) if not routes else ():
             try:
-                routes = placement.make_routes(world_map, scenario, count, config.seed, weathers)
+                routes = placement.make_routes(world_map, scenario, count, config.seed, weathers, config.params)
                 _save_routes(routes, saved)
                 break
             except placement.PlacementError as exc:

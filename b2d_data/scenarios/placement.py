@@ -3,10 +3,12 @@
 :func:`find_candidates` searches the town's lane graph for trigger points where a scenario type's layout exists
 (e.g. Accident: a second same-direction lane and a long junction-free stretch; junction turns: a connection making
 the right turn with the right signals and the flow's entry). :func:`make_routes` turns candidates into route XML
-:class:`~b2d_data.scenarios.route_xml.Route` objects (keypoints 2 m apart, the trigger point, parameters sampled
-in the ranges of expert-and-scenarios.md §2.2, two weather entries at 0 and 100 %), checking each one by densifying
-it exactly as the leaderboard does and setting up the scenario on it. Everything is deterministic for
-(town, scenario type, n, seed); route ids are ``(seed × 100 + type index) × 10000 + k``.
+:class:`~b2d_data.scenarios.route_xml.Route` objects (keypoints 2 m apart, the trigger point, parameters drawn
+from a :mod:`~b2d_data.scenarios.param_ranges` set, two weather entries at 0 and 100 %), checking each one by
+densifying it exactly as the leaderboard does and setting up the scenario on it. Layouts are sized for
+bench2drive220's distances; the training set's further actors lengthen each route's junction-free stretch and the
+route itself. Everything is deterministic for (town, scenario type, n, seed, parameter set); route ids are
+``(seed × 100 + type index) × 10000 + k``.
 """
 
 from __future__ import annotations
@@ -22,7 +24,6 @@ from b2d_data.format.scenario_types import NO_SCENARIO, SCENARIO_TYPES
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneChange, LaneType, Map, Waypoint
-from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
 from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
 from b2d_data.scenarios.catalog.junctions import walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
@@ -42,6 +43,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     yaw_diff,
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, scenario_class
+from b2d_data.scenarios.param_ranges import BENCH2DRIVE220, DEFAULT_PARAMS, ParamSet, param_set
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_xml import Route, ScenarioConfig
 
@@ -98,17 +100,7 @@ class Candidate:
             built = spec.path_builder(self.trigger, rng, spec.length)
             return (built, self.trigger) if built else None
         if self.connection is None:
-            pre = float(rng.uniform(*spec.pre)) if spec.pre[1] > 0 else 0.0
-            back = lane_walk(self.trigger, pre, forward=False, step=step) if pre > 0 else [self.trigger]
-            ahead = lane_walk(self.trigger, spec.length - pre, step=step)
-            # end before the next junction when the scenario's stretch is covered: junction traffic is no part of
-            # these scenarios and only makes their routes longer to finish
-            first_junction = next((k for k, wp in enumerate(ahead) if wp.is_junction), None)
-            if first_junction is not None and (first_junction - 3) * step >= spec.clear_after:
-                ahead = ahead[: first_junction - 2]
-            if (len(ahead) - 1) * step < spec.clear_after:
-                return None
-            return list(reversed(back)) + ahead[1:], self.trigger
+            return self.straight_path(self.draw_pre(rng))
         conn = self.connection
         if spec.route_path is not None:
             return spec.route_path(conn, rng)
@@ -124,6 +116,32 @@ class Candidate:
         offset = float(rng.uniform(*spec.trigger_offset))
         trigger = path[min(round(offset / step), len(back) - 1)]
         return path, trigger
+
+    @property
+    def is_straight(self) -> bool:
+        """Its route follows the trigger's lane (no junction, no path builder)."""
+        return self.connection is None and LAYOUTS[self.scenario_type].path_builder is None
+
+    def draw_pre(self, rng: np.random.Generator) -> float:
+        """Straight candidates: metres of route before the trigger."""
+        spec = LAYOUTS[self.scenario_type]
+        return float(rng.uniform(*spec.pre)) if spec.pre[1] > 0 else 0.0
+
+    def straight_path(self, pre: float, extra: float = 0.0) -> tuple[list[Waypoint], Waypoint] | None:
+        """Straight candidates: ``pre`` m before the trigger and the layout's length (plus ``extra`` m) after it."""
+        spec = LAYOUTS[self.scenario_type]
+        step = KEYPOINT_SPACING
+        clear = spec.clear_after + extra
+        back = lane_walk(self.trigger, pre, forward=False, step=step) if pre > 0 else [self.trigger]
+        ahead = lane_walk(self.trigger, spec.length + extra - pre, step=step)
+        # end before the next junction when the scenario's stretch is covered: junction traffic is no part of
+        # these scenarios and only makes their routes longer to finish
+        first_junction = next((k for k, wp in enumerate(ahead) if wp.is_junction), None)
+        if first_junction is not None and (first_junction - 3) * step >= clear:
+            ahead = ahead[: first_junction - 2]
+        if (len(ahead) - 1) * step < clear:
+            return None
+        return list(reversed(back)) + ahead[1:], self.trigger
 
 
 def _departure(
@@ -205,6 +223,21 @@ class Layout:
     route_path: Callable[[JunctionLane, np.random.Generator], tuple[list[Waypoint], Waypoint] | None] | None = None
     #: Parameters that depend on the planned path (e.g. a flow starting behind the route's start).
     path_parameters: Callable[[JunctionLane | None, list[Waypoint]], dict[str, dict[str, str]] | None] | None = None
+    #: Straight layouts with a ``direction``: the lane test each drawn side needs instead of ``lane_ok`` (the
+    #: candidate search takes any side the parameter set draws, each route checks its own side).
+    directions: Mapping[str, Callable[[Waypoint], bool]] | None = None
+    #: Straight layouts: the parameter (m) placing the scenario's actors along the route. ``clear_before``,
+    #: ``clear_after``, ``length`` and ``extra`` are sized for bench2drive220's values; a larger value lengthens
+    #: the junction-free stretch ahead by ``reach_ahead`` m and behind by ``reach_behind`` m per metre beyond.
+    reach_param: str | None = None
+    reach_ahead: float = 1.0
+    reach_behind: float = 0.0
+    #: Straight layouts: ``extra`` for a ``reach_param`` value outside bench2drive220's range (None: no check).
+    reach_ok: Callable[[Map, Waypoint, float], bool] | None = None
+    #: Straight layouts: beyond ``clear_before``/``clear_after`` the lengthened stretch may cross junctions
+    #: straight on (no turn beyond ``max_turn``, ``lane_ok`` outside them), and the walk back must lead forward to
+    #: the trigger again (a vehicle spawned there on its lane reaches the ego's lane).
+    reach_through_junctions: bool = False
 
     @property
     def is_junction(self) -> bool:
@@ -249,8 +282,13 @@ def _any_lane(wp: Waypoint) -> bool:
 
 
 def _opposite_flow_room(town: Map, wp: Waypoint) -> bool:
-    """The opposite lane continues 1.5 × limit + 30 m both ways around the furthest obstacle position."""
-    obstacle = move_along(wp, 44.0, step=11.0)
+    """The opposite lane continues 1.5 × limit + 30 m both ways around the furthest obstacle position (44 m)."""
+    return _opposite_flow_room_at(town, wp, 44.0)
+
+
+def _opposite_flow_room_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """The opposite lane continues 1.5 × limit + 30 m both ways around an obstacle ``distance`` m ahead."""
+    obstacle = move_along(wp, distance, step=11.0)
     if obstacle is None:
         return False
     opposite = opposite_driving_neighbour(obstacle)
@@ -273,15 +311,36 @@ def _door_side_lane(town: Map, wp: Waypoint) -> bool:
     return _opposite_flow_room(town, wp)
 
 
+def _door_side_lane_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """:func:`_door_side_lane` for a car ``distance`` m after the trigger."""
+    from b2d_data.scenarios.catalog.vehicle_opens_door import side_lane
+
+    for d in (distance, distance + 5.0):
+        ahead = move_along(wp, d, step=5.0)
+        if ahead is None or side_lane(ahead, "right") is None:
+            return False
+    return _opposite_flow_room_at(town, wp, distance)
+
+
 def _sidewalk_ahead(town: Map, wp: Waypoint) -> bool:
     """A sidewalk on the right where the blocker and the pedestrian stand (40–51 m after the trigger)."""
-    ahead: Waypoint | None = move_along(wp, 40.0, step=10.0)
+    return _sidewalk_at(town, wp, 40.0)
+
+
+def _sidewalk_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """A sidewalk on the right ``distance`` to ``distance + 11`` m after the trigger (blocker, then pedestrian)."""
+    ahead: Waypoint | None = move_along(wp, distance, step=10.0)
     for step in (5.0, 6.0, 0.0):
         if ahead is None or find_side_lane(ahead, "right", LaneType.SIDEWALK) is None:
             return False
         if step:
             ahead = move_along(ahead, step, step=step)
     return True
+
+
+def _parked_car_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """ParkingCrossingPedestrian: a parking lane on the right around a car ``distance`` m after the trigger."""
+    return _parking_ahead((distance - 2.0, distance + 2.0, distance + 7.0))(town, wp)
 
 
 def _parking_slot(town: Map, wp: Waypoint) -> bool:
@@ -688,39 +747,55 @@ def _exit_flow(conn: JunctionLane | None, path: list[Waypoint]) -> dict[str, dic
     return {"start_actor_flow": _xml_location(source), "end_actor_flow": _xml_location(sink)}
 
 
+#: Obstacles passed on the other side of the lane: a same-direction lane left of a right-hand obstacle and vice versa.
+PASS_OTHER_SIDE: Mapping[str, Callable[[Waypoint], bool]] = {"right": _multi_lane_left, "left": _multi_lane_right}
+
 #: The layout of each implemented scenario type.
 LAYOUTS: dict[str, Layout] = {
     "Accident": Layout("multi_lane", "two same-direction lanes, 120 m junction-free and straight-ish", _multi_lane_left,
-                       clear_after=120.0, max_turn=STRAIGHTISH),
+                       clear_after=120.0, max_turn=STRAIGHTISH, directions=PASS_OTHER_SIDE, reach_param="distance"),
     "ParkedObstacleTwoWays": Layout("two_way_street", "one lane each way, 100 m junction-free, opposite lane "
                                     "continuing ~105 m around the obstacle", _two_way_single, clear_after=100.0,
-                                    extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+                                    extra=_opposite_flow_room, max_turn=STRAIGHTISH, reach_param="distance",
+                                    reach_ok=_opposite_flow_room_at),
     "HazardAtSideLane": Layout("multi_lane", "two same-direction lanes (ego on the right one), 130 m junction-free",
-                               _multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH),
+                               _multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH,
+                               reach_param="distance"),
     "HazardAtSideLaneTwoWays": Layout("two_way_street", "one lane each way, 130 m junction-free",
-                                      _two_way_single, clear_after=130.0, max_turn=STRAIGHTISH),
+                                      _two_way_single, clear_after=130.0, max_turn=STRAIGHTISH,
+                                      reach_param="distance"),
     "VehicleOpensDoorTwoWays": Layout("parking_lane", "one lane each way with a parking lane (or a shoulder of "
                                       "2 m) on the right 37–59 m ahead, 115 m junction-free", _two_way_single,
-                                      clear_after=115.0, extra=_door_side_lane, max_turn=STRAIGHTISH),
+                                      clear_after=115.0, extra=_door_side_lane, max_turn=STRAIGHTISH,
+                                      reach_param="distance", reach_ok=_door_side_lane_at),
     "InvadingTurn": Layout("two_way_street", "one lane each way, 100 m junction-free", _two_way_single,
-                           clear_after=100.0),
+                           clear_after=100.0, reach_param="distance"),
     "HardBreakRoute": Layout("road", "any driving lane, 60 m junction-free", _any_lane, clear_after=60.0),
     "DynamicObjectCrossing": Layout("sidewalk", "rightmost lane with a sidewalk on the right, 110 m junction-free",
-                                    _rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH),
-    # Longer than the others: the scenario may last 10 s after the trigger, ~200 m on a fast road.
+                                    _rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH,
+                                    reach_param="distance", reach_ok=_sidewalk_at),
+    # Longer than the others: the scenario may last 10 s after the trigger, ~200 m on a fast road. The vehicle
+    # starts ``distance`` m behind the trigger and closes in at 25 km/h (7 m/s): each metre further back takes the
+    # ego up to four metres further (at 100 km/h) before the vehicle is near and the 10 s have passed. Generated
+    # highways have no 600 m without a ramp junction, so the lengthened stretch may cross junctions straight on.
     "YieldToEmergencyVehicle": Layout("multi_lane", "two same-direction lanes, 35 m behind and 200 m ahead "
                                       "junction-free", _multi_lane_any, clear_before=35.0, clear_after=200.0,
-                                      max_turn=STRAIGHTISH, length=230.0),
+                                      max_turn=STRAIGHTISH, length=230.0, reach_param="distance",
+                                      reach_ahead=4.0, reach_behind=1.0, reach_through_junctions=True),
     "ParkedObstacle": Layout("multi_lane", "two same-direction lanes, 100 m junction-free and straight-ish",
-                             _multi_lane_left, clear_after=100.0, max_turn=STRAIGHTISH),
+                             _multi_lane_left, clear_after=100.0, max_turn=STRAIGHTISH, directions=PASS_OTHER_SIDE,
+                             reach_param="distance"),
     "ConstructionObstacle": Layout("multi_lane", "two same-direction lanes, 110 m junction-free and straight-ish",
-                                   _multi_lane_left, clear_after=110.0, max_turn=STRAIGHTISH),
+                                   _multi_lane_left, clear_after=110.0, max_turn=STRAIGHTISH,
+                                   directions=PASS_OTHER_SIDE, reach_param="distance"),
     "AccidentTwoWays": Layout("two_way_street", "one lane each way, 120 m junction-free, opposite lane continuing "
                               "~105 m around the obstacle", _two_way_single, clear_after=120.0,
-                              extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+                              extra=_opposite_flow_room, max_turn=STRAIGHTISH, reach_param="distance",
+                              reach_ok=_opposite_flow_room_at),
     "ConstructionObstacleTwoWays": Layout("two_way_street", "one lane each way, 110 m junction-free, opposite lane "
                                           "continuing ~105 m around the obstacle", _two_way_single,
-                                          clear_after=110.0, extra=_opposite_flow_room, max_turn=STRAIGHTISH),
+                                          clear_after=110.0, extra=_opposite_flow_room, max_turn=STRAIGHTISH,
+                                          reach_param="distance", reach_ok=_opposite_flow_room_at),
     "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane, 40 m junction-free", _any_lane,
                           clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot),
     "OppositeVehicleRunningRedLight": Layout(
@@ -778,12 +853,14 @@ LAYOUTS: dict[str, Layout] = {
         "crossing entry", turns=("straight", "left"), signalized=False, junction_extra=_red_light_runner),
     "ParkingCrossingPedestrian": Layout("parking_lane", "rightmost lane with a parking lane on the right 34–52 m "
                                         "ahead, 100 m junction-free", _rightmost, clear_after=100.0,
-                                        extra=_parking_ahead((34.0, 40.0, 46.0, 52.0)), max_turn=STRAIGHTISH),
+                                        extra=_parking_ahead((34.0, 40.0, 46.0, 52.0)), max_turn=STRAIGHTISH,
+                                        reach_param="distance", reach_ok=_parked_car_at),
     "ParkingCutIn": Layout("parking_lane", "rightmost lane with a parking lane on the right 24–40 m ahead, 100 m "
                            "junction-free", _rightmost, clear_after=100.0, pre=(12.0, 14.0),
                            extra=_parking_ahead((24.0, 28.0, 32.0, 36.0, 40.0)), max_turn=STRAIGHTISH),
     "StaticCutIn": Layout("multi_lane", "two same-direction lanes (ego on the left one), 130 m junction-free",
-                          _multi_lane_right, clear_after=130.0, max_turn=STRAIGHTISH),
+                          _multi_lane_right, clear_after=130.0, max_turn=STRAIGHTISH,
+                          directions={"right": _multi_lane_right, "left": _multi_lane_left}, reach_param="distance"),
     "ControlLoss": Layout("road", "any driving lane, 115 m junction-free", _any_lane, clear_after=115.0,
                           length=130.0),
     "PedestrianCrossing": Layout(
@@ -900,12 +977,24 @@ def _turn_ahead(wp: Waypoint, distance: float, step: float = 10.0) -> float:
     return worst
 
 
-def _straight_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Candidate]:
+def _lane_test(scenario_type: str, spec: Layout, params: ParamSet) -> Callable[[Waypoint], bool] | None:
+    """The candidates' lane test: ``lane_ok``, or any side's test where the set draws ``direction``."""
+    sides = params.choices(scenario_type, "direction")
+    if spec.directions is None or not sides:
+        return spec.lane_ok
+    tests = [spec.directions[side] for side in sides]
+    if len(tests) == 1:
+        return tests[0]
+    return lambda wp: any(test(wp) for test in tests)
+
+
+def _straight_candidates(town: Map, scenario_type: str, spec: Layout, params: ParamSet) -> list[Candidate]:
     out = []
-    ahead = _RunLength(spec.lane_ok, True, RUN_CAP)
+    lane_ok = _lane_test(scenario_type, spec, params)
+    ahead = _RunLength(lane_ok, True, RUN_CAP)
     behind = _RunLength(None, False, RUN_CAP)
     for wp in town.generate_waypoints(CANDIDATE_SPACING):
-        if wp.is_junction or spec.lane_ok is None or not spec.lane_ok(wp):
+        if wp.is_junction or lane_ok is None or not lane_ok(wp):
             continue
         if not ahead.ok(wp, spec.clear_after):
             continue
@@ -956,13 +1045,13 @@ def _junction_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Ca
     return out
 
 
-def find_candidates(town: Map, scenario_type: str) -> list[Candidate]:
-    """Every place in ``town`` where ``scenario_type``'s layout exists, in a deterministic order."""
+def find_candidates(town: Map, scenario_type: str, params: str | ParamSet = DEFAULT_PARAMS) -> list[Candidate]:
+    """Every place in ``town`` where ``scenario_type``'s layout exists for the parameter set, in a fixed order."""
     spec = _check_type(scenario_type)
     if spec.is_junction:
         found = _junction_candidates(town, scenario_type, spec)
     else:
-        found = _straight_candidates(town, scenario_type, spec)
+        found = _straight_candidates(town, scenario_type, spec, param_set(params))
     log.info("%s: %d candidate places for %s", town.name, len(found), scenario_type)
     return found
 
@@ -970,153 +1059,68 @@ def find_candidates(town: Map, scenario_type: str) -> list[Candidate]:
 # ------------------------------------------------------------------------------------------------ parameters
 
 
-def _int(rng: np.random.Generator, lo: int, hi: int) -> str:
-    return str(int(rng.integers(lo, hi + 1)))
+def _reach_extra(scenario_type: str, spec: Layout, params: Mapping[str, Mapping[str, str]]) -> tuple[float, bool]:
+    """Metres the drawn ``reach_param`` lies beyond bench2drive220's largest value (>= 0), and whether it lies
+    outside bench2drive220's range (the layout's ``extra`` checked other distances)."""
+    base = BENCH2DRIVE220.int_range(scenario_type, spec.reach_param) if spec.reach_param else None
+    if base is None or spec.reach_param not in params:
+        return 0.0, False
+    value = float(params[spec.reach_param]["value"])
+    return max(0.0, value - base.hi), not base.lo <= value <= base.hi
 
 
-def _value(v: str) -> dict[str, str]:
-    return {"value": v}
+def _stretch_holds(wp: Waypoint, distance: float, lane_ok: Callable[[Waypoint], bool], max_turn: float | None) -> bool:
+    """The lane is junction-free, ``lane_ok`` and (with ``max_turn``) straight-ish at 5 m steps over ``distance`` m."""
+    if not _RunLength(lane_ok, True, distance + CHECK_STEP).ok(wp, distance):
+        return False
+    return max_turn is None or _turn_ahead(wp, distance) <= max_turn
 
 
-def _sample_parameters(scenario_type: str, rng: np.random.Generator) -> dict[str, dict[str, str]]:
-    """XML parameters drawn in the ranges of expert-and-scenarios.md §2.2 (integers, as in Bench2Drive's routes)."""
-    if scenario_type == "Accident":
-        return {"distance": _value(_int(rng, 40, 44)), "direction": _value("right"), "speed": _value(_int(rng, 53, 57))}
-    if scenario_type == "ParkedObstacleTwoWays":
-        return {
-            "distance": _value(_int(rng, 40, 44)),
-            "frequency": {"from": _int(rng, 31, 56), "to": _int(rng, 106, 151)},
-        }
-    if scenario_type == "ParkedObstacle":
-        return {"distance": _value(_int(rng, 40, 43)), "direction": _value("right"), "speed": _value(_int(rng, 40, 59))}
-    if scenario_type == "ConstructionObstacle":
-        return {"distance": _value(_int(rng, 40, 45)), "direction": _value("right"), "speed": _value(_int(rng, 47, 55))}
-    if scenario_type == "AccidentTwoWays":
-        return {
-            "distance": _value(_int(rng, 40, 44)),
-            "frequency": {"from": _int(rng, 32, 63), "to": _int(rng, 109, 184)},
-        }
-    if scenario_type == "ConstructionObstacleTwoWays":
-        return {
-            "distance": _value(_int(rng, 40, 45)),
-            "frequency": {"from": _int(rng, 43, 70), "to": _int(rng, 129, 200)},
-        }
-    if scenario_type == "HazardAtSideLane":
-        return {
-            "distance": _value(_int(rng, 41, 45)),
-            "speed": _value(_int(rng, 32, 59)),
-            "bicycle_drive_distance": _value(_int(rng, 40, 101)),
-            "bicycle_speed": _value(_int(rng, 6, 12)),
-        }
-    if scenario_type == "HazardAtSideLaneTwoWays":
-        return {
-            "distance": _value(_int(rng, 41, 45)),
-            "frequency": _value(_int(rng, 75, 100)),
-            "bicycle_drive_distance": _value(_int(rng, 80, 116)),
-            "bicycle_speed": _value(_int(rng, 7, 11)),
-        }
-    if scenario_type == "VehicleOpensDoorTwoWays":
-        return {
-            "distance": _value(_int(rng, 37, 59)),
-            "direction": _value("right"),
-            "frequency": {"from": _int(rng, 30, 40), "to": _int(rng, 89, 98)},
-        }
-    if scenario_type == "InvadingTurn":
-        return {"distance": _value(_int(rng, 50, 60)), "offset": _value(f"{rng.uniform(0.18, 0.34):.2f}")}
-    if scenario_type == "DynamicObjectCrossing":
-        model = BLOCKER_MODELS[int(rng.integers(len(BLOCKER_MODELS)))]
-        return {
-            "distance": _value(_int(rng, 40, 50)),
-            "direction": _value("right"),
-            "blocker_model": _value(model),
-            "crossing_angle": _value(_int(rng, 0, 11)),
-        }
-    if scenario_type == "ParkingCrossingPedestrian":
-        return {
-            "distance": _value(_int(rng, 36, 45)),
-            "direction": _value("right"),
-            "crossing_angle": _value(_int(rng, 0, 12)),
-        }
-    if scenario_type == "ParkingCutIn":
-        return {"direction": _value("right")}
-    if scenario_type == "StaticCutIn":
-        return {"distance": _value(_int(rng, 40, 45)), "direction": _value("right")}
-    # Junction flows: the slower, sparser part of §2.2's ranges. The expert turns through a gap only when no flow
-    # car's 2 s forecast meets its own; denser or faster flows (down to 1 s headways) leave it waiting for good.
-    if scenario_type == "SignalizedJunctionLeftTurn":
-        return {
-            "flow_speed": _value(_int(rng, 9, 10)),
-            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 28)},
-        }
-    if scenario_type == "NonSignalizedJunctionLeftTurn":
-        return {
-            "flow_speed": _value(_int(rng, 8, 10)),
-            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
-        }
-    if scenario_type == "SignalizedJunctionLeftTurnEnterFlow":
-        return {
-            "flow_speed": _value(_int(rng, 8, 10)),
-            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 26, 30)},
-        }
-    if scenario_type == "NonSignalizedJunctionLeftTurnEnterFlow":
-        return {
-            "flow_speed": _value(_int(rng, 8, 10)),
-            "source_dist_interval": {"from": _int(rng, 17, 19), "to": _int(rng, 26, 30)},
-        }
-    if scenario_type == "EnterActorFlow":
-        return {
-            "flow_speed": _value(_int(rng, 12, 14)),
-            "source_dist_interval": {"from": _int(rng, 25, 30), "to": _int(rng, 33, 39)},
-        }
-    if scenario_type == "CrossingBicycleFlow":
-        return {
-            "flow_speed": _value(_int(rng, 8, 9)),
-            "source_dist_interval": {"from": _int(rng, 13, 15), "to": _int(rng, 25, 30)},
-        }
-    if scenario_type == "SignalizedJunctionRightTurn":
-        return {
-            "flow_speed": _value(_int(rng, 10, 12)),
-            "source_dist_interval": {"from": _int(rng, 20, 24), "to": _int(rng, 28, 38)},
-        }
-    if scenario_type == "NonSignalizedJunctionRightTurn":
-        return {
-            "flow_speed": _value(_int(rng, 8, 11)),
-            "source_dist_interval": {"from": _int(rng, 18, 22), "to": _int(rng, 27, 30)},
-        }
-    if scenario_type == "InterurbanActorFlow":
-        return {
-            "flow_speed": _value(_int(rng, 15, 16)),
-            "source_dist_interval": {"from": _int(rng, 42, 53), "to": _int(rng, 78, 98)},
-        }
-    if scenario_type == "InterurbanAdvancedActorFlow":
-        return {
-            "flow_speed": _value(_int(rng, 16, 18)),
-            "source_dist_interval": {"from": _int(rng, 36, 42), "to": _int(rng, 84, 94)},
-        }
-    if scenario_type == "MergerIntoSlowTraffic":
-        return {
-            "flow_speed": _value(_int(rng, 9, 10)),
-            "source_dist_interval": {"from": _int(rng, 14, 16), "to": _int(rng, 33, 42)},
-        }
-    if scenario_type == "MergerIntoSlowTrafficV2":
-        return {
-            "flow_speed": _value("10"),
-            "source_dist_interval": {"from": _int(rng, 11, 14), "to": _int(rng, 30, 34)},
-        }
-    if scenario_type == "HighwayExit":
-        return {
-            "flow_speed": _value(_int(rng, 10, 15)),
-            "source_dist_interval": {"from": _int(rng, 11, 20), "to": _int(rng, 33, 46)},
-        }
-    if scenario_type == "YieldToEmergencyVehicle":
-        return {"distance": _value(_int(rng, 26, 30))}
-    if scenario_type == "ParkingExit":
-        return {
-            "direction": _value("right"),
-            "front_vehicle_distance": _value("9"),
-            "behind_vehicle_distance": _value("9"),
-        }
-    return {}
+def _open_stretch_holds(
+    wp: Waypoint, ahead: float, behind: float, lane_ok: Callable[[Waypoint], bool], max_turn: float | None
+) -> bool:
+    """:attr:`Layout.reach_through_junctions`: ``ahead`` m of lane (straightest branches) ``lane_ok`` outside
+    junctions and turning at most ``max_turn``; ``behind`` m of lane back whose walk forward returns to ``wp``."""
+    walk = lane_walk(wp, ahead, step=CHECK_STEP)
+    if (len(walk) - 1) * CHECK_STEP < ahead - 1e-6 or not all(p.is_junction or lane_ok(p) for p in walk):
+        return False
+    if max_turn is not None and _turn_ahead(wp, ahead) > max_turn:
+        return False
+    back = lane_walk(wp, behind, forward=False, step=CHECK_STEP)
+    if (len(back) - 1) * CHECK_STEP < behind - 1e-6:
+        return False
+    again = lane_walk(back[-1], behind, step=CHECK_STEP)[-1]
+    return again.transform.location.distance_2d(wp.transform.location) < 2.0 * CHECK_STEP
+
+
+def _fits(
+    town: Map,
+    candidate: Candidate,
+    params: Mapping[str, Mapping[str, str]],
+    extra: float,
+    outside: bool,
+    set_sides: int,
+) -> bool:
+    """A straight candidate holds the drawn parameters: its stretch reaches the actors and the drawn side."""
+    spec = LAYOUTS[candidate.scenario_type]
+    trigger = candidate.trigger
+    side = params.get("direction", {}).get("value")
+    lane_ok = spec.directions[side] if spec.directions is not None and side in spec.directions else spec.lane_ok
+    ahead = spec.clear_after + spec.reach_ahead * extra
+    behind = spec.clear_before + spec.reach_behind * extra
+    if spec.reach_through_junctions and lane_ok is not None:
+        return extra <= 0 or _open_stretch_holds(trigger, ahead, behind, lane_ok, spec.max_turn)
+    if (
+        (extra > 0 or set_sides > 1)
+        and lane_ok is not None
+        and not _stretch_holds(trigger, ahead, lane_ok, spec.max_turn)
+    ):
+        return False
+    if extra > 0 and spec.reach_behind > 0 and not _stretch_ok(trigger, behind, False, None):
+        return False
+    if outside and spec.reach_ok is not None and spec.reach_param is not None:
+        return spec.reach_ok(town, trigger, float(params[spec.reach_param]["value"]))
+    return True
 
 
 # ------------------------------------------------------------------------------------------------ routes
@@ -1159,19 +1163,38 @@ def _deviation(dense: DenseRoute, path: Sequence[Waypoint]) -> float:
 
 
 def _route_for(
-    town: Map, candidate: Candidate, rng: np.random.Generator, rid: str, index: int, weather_id: int
+    town: Map,
+    candidate: Candidate,
+    rng: np.random.Generator,
+    rid: str,
+    index: int,
+    weather_id: int,
+    params_set: ParamSet = BENCH2DRIVE220,
 ) -> Route | None:
     """Build and check one route on a candidate; None when it does not hold up."""
-    planned = candidate.path(rng)
+    pre = candidate.draw_pre(rng) if candidate.is_straight else 0.0
+    planned = candidate.straight_path(pre) if candidate.is_straight else candidate.path(rng)
     if planned is None:
         return None
-    path, trigger = planned
-    keypoints = _keypoints(path)
+    keypoints = _keypoints(planned[0])
     if len(keypoints) < 2:
         return None
-    params = _sample_parameters(candidate.scenario_type, rng)
+    params = params_set.draw(candidate.scenario_type, rng)
     params.update({k: dict(v) for k, v in candidate.fixed.items()})
     spec = LAYOUTS[candidate.scenario_type]
+    if candidate.is_straight:
+        # far-out actors (training ranges) need a longer junction-free stretch and route than the layout's
+        extra, outside = _reach_extra(candidate.scenario_type, spec, params)
+        sides = len(params_set.choices(candidate.scenario_type, "direction"))
+        if not _fits(town, candidate, params, extra, outside, sides):
+            log.debug("%s: the place has no room for %s", rid, params)
+            return None
+        if extra > 0:
+            planned = candidate.straight_path(pre, spec.reach_ahead * extra)
+            if planned is None:
+                return None
+            keypoints = _keypoints(planned[0])
+    path, trigger = planned
     if spec.path_parameters is not None:
         derived = spec.path_parameters(candidate.connection, path)
         if derived is None:
@@ -1214,22 +1237,30 @@ def _route_for(
 
 
 def make_routes(
-    town: Map, scenario_type: str, n: int, seed: int = 0, weathers: Sequence[int] | None = None
+    town: Map,
+    scenario_type: str,
+    n: int,
+    seed: int = 0,
+    weathers: Sequence[int] | None = None,
+    params: str | ParamSet = DEFAULT_PARAMS,
 ) -> list[Route]:
     """``n`` routes holding one ``scenario_type`` scenario each, on distinct places while there are enough.
 
-    ``weathers`` lists the preset ids to draw from (default: all 23). Raises :class:`PlacementError` when the town
-    lacks the layout (message names it) or no candidate survives the checks.
+    ``weathers`` lists the preset ids to draw from (default: all 23); ``params`` names the parameter ranges
+    (:mod:`~b2d_data.scenarios.param_ranges`: ``training``, the default, or ``bench2drive220``). A place too short
+    for the drawn distances is skipped, so long distances come from the towns' longer roads. Raises
+    :class:`PlacementError` when the town lacks the layout (message names it) or no candidate survives the checks.
     """
     if n < 0:
         raise ValueError(f"n must be >= 0, got {n}")
+    ranges = param_set(params)
     spec = _check_type(scenario_type)
     pool = tuple(int(w) for w in weathers) if weathers is not None else WEATHER_IDS
     for w in pool:
         preset(w)  # unknown ids raise here, naming the valid ones
     if not pool:
         raise ValueError("weathers must list at least one preset id")
-    candidates = find_candidates(town, scenario_type)
+    candidates = find_candidates(town, scenario_type, ranges)
     if not candidates:
         raise PlacementError(
             f"{town.name} has no place for {scenario_type}: layout '{spec.name}' missing ({spec.description})"
@@ -1243,7 +1274,13 @@ def make_routes(
             break
         k = len(routes)
         route = _route_for(
-            town, candidates[i], rng, route_id(seed, scenario_type, k), k + 1, pool[int(rng.integers(len(pool)))]
+            town,
+            candidates[i],
+            rng,
+            route_id(seed, scenario_type, k),
+            k + 1,
+            pool[int(rng.integers(len(pool)))],
+            ranges,
         )
         if route is not None:
             routes.append(route)
@@ -1260,7 +1297,13 @@ def make_routes(
         k = len(routes)
         candidate = usable[k % len(usable)]
         route = _route_for(
-            town, candidate, rng, route_id(seed, scenario_type, k), k + 1, pool[int(rng.integers(len(pool)))]
+            town,
+            candidate,
+            rng,
+            route_id(seed, scenario_type, k),
+            k + 1,
+            pool[int(rng.integers(len(pool)))],
+            ranges,
         )
         if route is not None:
             routes.append(route)

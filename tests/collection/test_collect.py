@@ -46,7 +46,7 @@ def short_routes(tmp_path_factory) -> tuple[Path, Path]:
     town = TownSource(preset="all").materialise(folder)
     world_map = load_map(town)
     short = []
-    for route in placement.make_routes(world_map, "Accident", 3, seed=0):
+    for route in placement.make_routes(world_map, "Accident", 3, seed=0, params="bench2drive220"):
         start = route.waypoints[0]
         keep = tuple(p for p in route.waypoints if math.hypot(p.x - start.x, p.y - start.y) <= ROUTE_LENGTH)
         cut = replace(route, waypoints=keep)

@@ -60,7 +60,7 @@ def corpus(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("town")
     town = TownSource(preset="all").materialise(folder)
     world_map = load_map(town)
-    routes = [_short(placement.make_routes(world_map, t, 1, seed=0)[0]) for t in TYPES]
+    routes = [_short(placement.make_routes(world_map, t, 1, seed=0, params="bench2drive220")[0]) for t in TYPES]
     path = folder / "issue14.xml"
     write_routes(routes, path)
     out = tmp_path_factory.mktemp("corpus") / "data"

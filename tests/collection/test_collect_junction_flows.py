@@ -35,7 +35,7 @@ def collection(tmp_path_factory) -> Path:
     world_map = load_map(town)
     routes = []
     for scenario_type in TYPES:
-        route = placement.make_routes(world_map, scenario_type, 1, seed=0)[0]
+        route = placement.make_routes(world_map, scenario_type, 1, seed=0, params="bench2drive220")[0]
         # keypoints skip the junction: keep the last ones before it (the widest gap) and the first one past it,
         # and move the trigger to the new start
         gaps = [a.distance(b) for a, b in zip(route.waypoints, route.waypoints[1:])]

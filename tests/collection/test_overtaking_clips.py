@@ -44,7 +44,7 @@ def corpus(tmp_path_factory) -> Path:
     world_map = load_map(town)
     routes = []
     for scenario_type in EXPECTED:
-        route = placement.make_routes(world_map, scenario_type, 1, seed=0)[0]
+        route = placement.make_routes(world_map, scenario_type, 1, seed=0, params="bench2drive220")[0]
         start = route.waypoints[0]
         keep = tuple(p for p in route.waypoints if math.hypot(p.x - start.x, p.y - start.y) <= ROUTE_LENGTH)
         routes.append(replace(route, waypoints=keep))

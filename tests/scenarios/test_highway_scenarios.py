@@ -43,7 +43,7 @@ def drive(preset: str, scenario_type: str, k: int = 0, tmp: Path | None = None) 
 
     town = TownSource(preset=preset).materialise(tmp)
     world_map = load_map(town)
-    route = placement.make_routes(world_map, scenario_type, k + 1, seed=0)[k]
+    route = placement.make_routes(world_map, scenario_type, k + 1, seed=0, params="bench2drive220")[k]
     dense = DenseRoute.from_route(world_map, route)
     seen = Drive(False, {})
 
@@ -76,7 +76,7 @@ def short_clip(tmp: Path, preset: str, scenario_type: str, keep: float) -> Path:
 
     town = TownSource(preset=preset).materialise(tmp / "town")
     world_map = load_map(town)
-    route = placement.make_routes(world_map, scenario_type, 1, seed=0)[0]
+    route = placement.make_routes(world_map, scenario_type, 1, seed=0, params="bench2drive220")[0]
     start = route.waypoints[0]
     cut = replace(
         route, waypoints=tuple(p for p in route.waypoints if math.hypot(p.x - start.x, p.y - start.y) <= keep)
@@ -138,7 +138,7 @@ def test_one_clip_loads_with_the_scenario_actors_annotated(tmp_path, preset, sce
     assert clip.name.startswith(prefix)
     assert load_clip(clip) > 0
     town = load_map(TownSource(preset=preset).materialise(tmp_path / "town"))
-    route = placement.make_routes(town, scenario_type, 1, seed=0)[0]
+    route = placement.make_routes(town, scenario_type, 1, seed=0, params="bench2drive220")[0]
     lane = _lane_of(town, route.scenarios[0].other_parameters[spot])
     # that lane is removed from background traffic (and the opposite traffic paused) at the trigger: the cars
     # annotated on it are the scenario's, as dynamic vehicles with a CARLA vehicle blueprint
@@ -215,7 +215,7 @@ def test_highway_cut_in_places_on_town04_ramps(carla_maps_dir):
     from b2d_data.maps import load_opendrive
 
     town = load_opendrive(carla_maps_dir / "Town04.xodr")
-    routes = placement.make_routes(town, "HighwayCutIn", 3, seed=0)
+    routes = placement.make_routes(town, "HighwayCutIn", 3, seed=0, params="bench2drive220")
     for route in routes:
         dense = DenseRoute.from_route(town, route)
         car = _lane_of(town, route.scenarios[0].other_parameters["other_actor_location"])
@@ -272,7 +272,7 @@ def test_sequential_lane_change_expert_drives_on_when_the_new_lane_stays_a_queue
 
     town = TownSource(preset="all").materialise(tmp_path)
     world_map = load_map(town)
-    route = placement.make_routes(world_map, "SequentialLaneChange", 1, seed=15)[0]
+    route = placement.make_routes(world_map, "SequentialLaneChange", 1, seed=15, params="bench2drive220")[0]
     seed = route_seed(15, f"all:{route.id}")  # as scripts/expert_success.py seeds it
     dense = DenseRoute.from_route(world_map, route)
     driver = expert.Expert(world_map, list(dense), expert.ExpertConfig.for_builtin(), seed=seed)
@@ -329,7 +329,7 @@ def test_merger_clip_loads_with_the_flow_cars_annotated(tmp_path, scenario_type)
     assert clip.name.startswith(f"{scenario_type}_Town102_Route")
     assert load_clip(clip) > 0
     town = load_map(TownSource(preset="highway").materialise(tmp_path / "town"))
-    route = placement.make_routes(town, scenario_type, 1, seed=0)[0]
+    route = placement.make_routes(town, scenario_type, 1, seed=0, params="bench2drive220")[0]
     lane = _lane_of(town, route.scenarios[0].other_parameters["start_actor_flow"])
     on_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == lane]
     assert on_lane and all(b["type_id"].startswith("vehicle.") for b in on_lane)
@@ -365,7 +365,7 @@ def test_highway_exit_places_on_town04_exits(carla_maps_dir):
     from b2d_data.maps import load_opendrive
 
     town = load_opendrive(carla_maps_dir / "Town04.xodr")
-    for route in placement.make_routes(town, "HighwayExit", 2, seed=0):
+    for route in placement.make_routes(town, "HighwayExit", 2, seed=0, params="bench2drive220"):
         params = route.scenarios[0].other_parameters
         start = town.get_waypoint(route.waypoints[0])
         source = town.get_waypoint(Location(*(float(params["start_actor_flow"][a]) for a in "xyz")))
@@ -382,7 +382,7 @@ def test_one_highway_exit_clip_loads_with_the_flow_annotated(tmp_path):
     assert clip.name.startswith("HighwayExit_Town100_Route")
     assert load_clip(clip) > 0
     town = load_map(TownSource(preset="all").materialise(tmp_path / "town"))
-    route = placement.make_routes(town, "HighwayExit", 1, seed=0)[0]
+    route = placement.make_routes(town, "HighwayExit", 1, seed=0, params="bench2drive220")[0]
     beside = town.get_waypoint(route.waypoints[0]).get_right_lane()
     on_lane = [b for b in clip_vehicles(clip) if (b["road_id"], b["lane_id"]) == (beside.road_id, beside.lane_id)]
     # the flow's lane is removed from background traffic: the cars annotated on it are the flow's

@@ -84,7 +84,7 @@ def test_the_flow_holds_its_car_back_while_the_hero_is_near_the_source(town, cle
 
 def _started_invading_turn(town, sim):
     """InvadingTurn on the first generated route, triggered by an ego spawned at its trigger point."""
-    route = make_routes(town, "InvadingTurn", 1, seed=0)[0]
+    route = make_routes(town, "InvadingTurn", 1, seed=0, params="bench2drive220")[0]
     dense = DenseRoute.from_route(town, route)
     rng = np.random.default_rng(1)
     index = trigger_route_index(dense, route.scenarios[0].trigger_point)

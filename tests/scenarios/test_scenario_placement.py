@@ -57,7 +57,8 @@ def _in(value: str, lo: int, hi: int) -> bool:
 
 
 def test_accident_routes_are_complete_and_checked(town):
-    routes = make_routes(town, "Accident", 4, seed=3)
+    # bench2drive220's ranges and route lengths (the training set's: tests/scenarios/test_param_ranges.py)
+    routes = make_routes(town, "Accident", 4, seed=3, params="bench2drive220")
     assert [r.id for r in routes] == [route_id(3, "Accident", k) for k in range(4)]
     assert len({r.id for r in routes}) == 4
     for k, r in enumerate(routes):
@@ -80,7 +81,7 @@ def test_accident_routes_are_complete_and_checked(town):
 
 
 def test_junction_routes_turn_through_their_junction(town):
-    for r in make_routes(town, "SignalizedJunctionLeftTurn", 3, seed=0):
+    for r in make_routes(town, "SignalizedJunctionLeftTurn", 3, seed=0, params="bench2drive220"):
         sc = r.scenarios[0]
         assert _in(sc.parameter("flow_speed"), 9, 11)
         assert _in(sc.parameter("source_dist_interval", "from"), 15, 24)

@@ -128,7 +128,7 @@ def run_scripted(town, route, speed: float = 8.0, max_ticks: int = 1600, on_tick
 
 @pytest.mark.parametrize("scenario_type", TYPES)
 def test_scenario_runs_to_its_end_with_a_scripted_ego(town, scenario_type):
-    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    route = make_routes(town, scenario_type, 1, seed=0, params="bench2drive220")[0]
     # slower through the merges, so that the flow (not pre-populated) reaches the exit road before the ego left
     trace = run_scripted(town, route, speed=3.0 if scenario_type in INTO_EGO_EXIT else 8.0)
     assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS], trace.statuses
@@ -177,7 +177,7 @@ EXPERT_SMOKE = ("Accident", "DynamicObjectCrossing", "NonSignalizedJunctionRight
 def test_the_expert_completes_one_route_per_family(town, scenario_type):
     from b2d_data import expert
 
-    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    route = make_routes(town, scenario_type, 1, seed=0, params="bench2drive220")[0]
     dense = DenseRoute.from_route(town, route)
     with BuiltinSimulator(town, seed=0) as sim:
         result = RouteRunner(sim, route, expert.Expert(town, list(dense), seed=0), seed=0, dense_route=dense,
@@ -244,7 +244,7 @@ def test_issue14_scenario_defining_event(town, scenario_type):
     from b2d_data.scenarios.catalog.road_geometry import junction_lanes
     from b2d_data.sim import blueprints
 
-    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    route = make_routes(town, scenario_type, 1, seed=0, params="bench2drive220")[0]
     trace, seen, noise = observe_scenario(town, route)
     status = list(trace.statuses.values())
     if scenario_type in OPEN_ENDED:
@@ -327,7 +327,7 @@ def _heading_dot(dense, actor) -> float:
 @pytest.mark.parametrize("scenario_type", ("ParkedObstacle", "AccidentTwoWays", "ConstructionObstacle",
                                            "ConstructionObstacleTwoWays"))  # fmt: skip
 def test_obstacles_block_the_ego_lane_and_two_way_ones_get_an_opposite_flow(town, scenario_type):
-    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    route = make_routes(town, scenario_type, 1, seed=0, params="bench2drive220")[0]
     static: dict[int, tuple[str, float]] = {}  # id -> (type id, how far its box reaches into the ego lane)
     oncoming: set[int] = set()
 
@@ -362,7 +362,7 @@ def test_obstacles_block_the_ego_lane_and_two_way_ones_get_an_opposite_flow(town
 
 
 def test_the_parked_car_opens_its_door_before_the_ego_reaches_it(town):
-    route = make_routes(town, "VehicleOpensDoorTwoWays", 1, seed=0)[0]
+    route = make_routes(town, "VehicleOpensDoorTwoWays", 1, seed=0, params="bench2drive220")[0]
     seen: dict[str, float] = {}
 
     def watch(snap, dense, manager):
@@ -393,7 +393,7 @@ def test_the_parked_car_opens_its_door_before_the_ego_reaches_it(town):
 
 
 def test_the_invading_flow_enters_the_ego_lane_by_about_the_offset(town):
-    route = make_routes(town, "InvadingTurn", 1, seed=0)[0]
+    route = make_routes(town, "InvadingTurn", 1, seed=0, params="bench2drive220")[0]
     offset = float(route.scenarios[0].parameter("offset"))
     invasion: dict[int, float] = {}
 
@@ -413,7 +413,7 @@ def test_the_invading_flow_enters_the_ego_lane_by_about_the_offset(town):
 
 
 def test_the_two_way_bicycles_ride_and_the_opposite_traffic_thins_out(town):
-    route = make_routes(town, "HazardAtSideLaneTwoWays", 1, seed=0)[0]
+    route = make_routes(town, "HazardAtSideLaneTwoWays", 1, seed=0, params="bench2drive220")[0]
     frequency = float(route.scenarios[0].parameter("frequency"))
     bicycle_speed = float(route.scenarios[0].parameter("bicycle_speed")) / 3.6
     spawn_dists: list[float] = []

@@ -34,7 +34,7 @@ def town(tmp_path_factory):
 
 
 def test_green_then_all_red_for_5_s_each_then_the_states_at_the_trigger_and_the_end(town):
-    route = make_routes(town, GREEN_LIGHT, 1, seed=0)[0]
+    route = make_routes(town, GREEN_LIGHT, 1, seed=0, params="bench2drive220")[0]
     dense = DenseRoute.from_route(town, route)
     index = trigger_route_index(dense, route.scenarios[0].trigger_point)
     with BuiltinSimulator(town, seed=0) as sim:
@@ -77,7 +77,7 @@ def test_green_then_all_red_for_5_s_each_then_the_states_at_the_trigger_and_the_
 
 
 def test_green_light_routes_start_10_m_before_the_junction_and_trigger_2_or_4_m_before_it(town):
-    routes = make_routes(town, GREEN_LIGHT, 6, seed=0)
+    routes = make_routes(town, GREEN_LIGHT, 6, seed=0, params="bench2drive220")
     gaps = []
     for route in routes:
         dense = DenseRoute.from_route(town, route)

@@ -1,0 +1,240 @@
+"""The ranges generated routes draw each scenario's XML parameters from: two named sets.
+
+``training`` (the default) is read off CARLA Leaderboard 2.0's ``routes_training.xml`` (branch leaderboard-2.0,
+``data/routes_training.xml``), the route set PDM-Lite-style data is collected on: for each type the smallest and
+largest value of every numeric parameter the file sets and the values of its categorical ones. Obstacles and
+actors lie much further out there (Accident 50–200 m, ConstructionObstacleTwoWays up to 300 m,
+YieldToEmergencyVehicle 110–140 m behind) and flows are faster and denser (up to 21 m/s, gaps from 5 m).
+
+``bench2drive220`` keeps the narrower ranges the placement drew before (expert-and-scenarios.md §2.2:
+bench2drive220.xml's values, junction flows on their slower, sparser part).
+
+Where the training set departs from a plain min/max of the file:
+
+- Types absent from ``routes_training.xml`` (the Bench2Drive-only SignalizedJunctionLeftTurnEnterFlow and
+  NonSignalizedJunctionLeftTurnEnterFlow) keep their bench2drive220 ranges in both sets.
+- Numbers are drawn as integers in [min, max] (the file's few decimals, e.g. ``flow_speed`` 8.3 and 16.6 m/s,
+  lie inside); the upper end of a ``from``/``to`` interval is never drawn below its lower end.
+- Typos are left out: CrossingBicycleFlow's ``source_dist_interval to="3255"`` (3 of 42) and ParkingCutIn's
+  ``direction="40"`` (3 of 114).
+- ``direction`` is drawn from both sides only where the placement searches both (Accident, ConstructionObstacle,
+  ParkedObstacle, StaticCutIn). DynamicObjectCrossing, ParkingCrossingPedestrian, ParkingCutIn and ParkingExit
+  stay on the right (left in 12/141, 36/93, 27/90, 3/42 of the file): their layouts look for a sidewalk or parking
+  lane on the right only. DynamicObjectCrossing keeps our two blocker props (the file also has food carts, bus
+  stops, hay bales and parked cars).
+- Parameters the file sets in only some scenarios (Accident's ``speed`` in 45 of 111) are drawn for every route.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+
+
+@dataclass(frozen=True)
+class IntRange:
+    """Whole numbers from ``lo`` to ``hi`` inclusive (a single value when equal: nothing is drawn)."""
+
+    lo: int
+    hi: int
+
+    def __post_init__(self) -> None:
+        if self.lo > self.hi:
+            raise ValueError(f"empty range {self.lo}..{self.hi}")
+
+    def draw(self, rng: np.random.Generator, lo: int | None = None) -> int:
+        """A value in the range (at least ``lo`` when given and inside it)."""
+        low = self.lo if lo is None else min(max(self.lo, lo), self.hi)
+        return low if low == self.hi else int(rng.integers(low, self.hi + 1))
+
+
+@dataclass(frozen=True)
+class FloatRange:
+    """Decimals from ``lo`` to ``hi``, written with ``digits`` decimals."""
+
+    lo: float
+    hi: float
+    digits: int = 2
+
+    def draw(self, rng: np.random.Generator) -> str:
+        """A value in the range, as the XML text."""
+        return f"{rng.uniform(self.lo, self.hi):.{self.digits}f}"
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One of ``values`` (a single value: nothing is drawn)."""
+
+    values: tuple[str, ...]
+
+    def draw(self, rng: np.random.Generator) -> str:
+        """One of the values."""
+        return self.values[0] if len(self.values) == 1 else self.values[int(rng.integers(len(self.values)))]
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A ``from``/``to`` pair (``source_dist_interval``, ``frequency``): ``to`` is never below ``from``."""
+
+    lo: IntRange
+    hi: IntRange
+
+    def draw(self, rng: np.random.Generator) -> dict[str, str]:
+        """The XML attributes ``from`` and ``to``."""
+        start = self.lo.draw(rng)
+        return {"from": str(start), "to": str(self.hi.draw(rng, lo=start))}
+
+
+Spec = IntRange | FloatRange | Choice | Interval
+
+
+@dataclass(frozen=True)
+class ParamSet:
+    """A named set of ranges: per scenario type, its parameters in drawing order."""
+
+    name: str
+    types: Mapping[str, Mapping[str, Spec]] = field(default_factory=dict)
+
+    def ranges(self, scenario_type: str) -> Mapping[str, Spec]:
+        """The parameters ``scenario_type`` draws (empty when it has none)."""
+        return self.types.get(scenario_type, MappingProxyType({}))
+
+    def int_range(self, scenario_type: str, name: str) -> IntRange | None:
+        """The range of a whole-number parameter, None when the type does not draw it."""
+        spec = self.ranges(scenario_type).get(name)
+        return spec if isinstance(spec, IntRange) else None
+
+    def choices(self, scenario_type: str, name: str) -> tuple[str, ...]:
+        """The values of a categorical parameter (empty when the type does not draw it)."""
+        spec = self.ranges(scenario_type).get(name)
+        return spec.values if isinstance(spec, Choice) else ()
+
+    def draw(self, scenario_type: str, rng: np.random.Generator) -> dict[str, dict[str, str]]:
+        """XML parameters of one scenario, drawn in order (the ``value`` attribute, or ``from``/``to``)."""
+        out: dict[str, dict[str, str]] = {}
+        for name, spec in self.ranges(scenario_type).items():
+            if isinstance(spec, Interval):
+                out[name] = spec.draw(rng)
+            elif isinstance(spec, IntRange):
+                out[name] = {"value": str(spec.draw(rng))}
+            else:
+                out[name] = {"value": spec.draw(rng)}
+        return out
+
+
+def _r(lo: int, hi: int) -> IntRange:
+    return IntRange(lo, hi)
+
+
+def _iv(lo: tuple[int, int], hi: tuple[int, int]) -> Interval:
+    return Interval(IntRange(*lo), IntRange(*hi))
+
+
+def _flow(speed: tuple[int, int], start: tuple[int, int], end: tuple[int, int]) -> dict[str, Spec]:
+    return {"flow_speed": _r(*speed), "source_dist_interval": _iv(start, end)}
+
+
+_RIGHT = Choice(("right",))
+_BOTH = Choice(("right", "left"))
+_BLOCKERS = Choice(BLOCKER_MODELS)
+
+#: Bench2Drive's evaluation ranges, as drawn before the training set existed (order = drawing order).
+_BENCH2DRIVE220: dict[str, dict[str, Spec]] = {
+    "Accident": {"distance": _r(40, 44), "direction": _RIGHT, "speed": _r(53, 57)},
+    "ParkedObstacleTwoWays": {"distance": _r(40, 44), "frequency": _iv((31, 56), (106, 151))},
+    "ParkedObstacle": {"distance": _r(40, 43), "direction": _RIGHT, "speed": _r(40, 59)},
+    "ConstructionObstacle": {"distance": _r(40, 45), "direction": _RIGHT, "speed": _r(47, 55)},
+    "AccidentTwoWays": {"distance": _r(40, 44), "frequency": _iv((32, 63), (109, 184))},
+    "ConstructionObstacleTwoWays": {"distance": _r(40, 45), "frequency": _iv((43, 70), (129, 200))},
+    "HazardAtSideLane": {"distance": _r(41, 45), "speed": _r(32, 59), "bicycle_drive_distance": _r(40, 101),
+                         "bicycle_speed": _r(6, 12)},
+    "HazardAtSideLaneTwoWays": {"distance": _r(41, 45), "frequency": _r(75, 100),
+                                "bicycle_drive_distance": _r(80, 116), "bicycle_speed": _r(7, 11)},
+    "VehicleOpensDoorTwoWays": {"distance": _r(37, 59), "direction": _RIGHT, "frequency": _iv((30, 40), (89, 98))},
+    "InvadingTurn": {"distance": _r(50, 60), "offset": FloatRange(0.18, 0.34)},
+    # the blocker first: the order the placement drew them in before the sets existed (same routes per seed)
+    "DynamicObjectCrossing": {"blocker_model": _BLOCKERS, "distance": _r(40, 50), "direction": _RIGHT,
+                              "crossing_angle": _r(0, 11)},
+    "ParkingCrossingPedestrian": {"distance": _r(36, 45), "direction": _RIGHT, "crossing_angle": _r(0, 12)},
+    "ParkingCutIn": {"direction": _RIGHT},
+    "StaticCutIn": {"distance": _r(40, 45), "direction": _RIGHT},
+    # Junction flows: the slower, sparser part of §2.2's ranges. The expert turns through a gap only when no flow
+    # car's 2 s forecast meets its own; denser or faster flows (down to 1 s headways) leave it waiting for good.
+    "SignalizedJunctionLeftTurn": _flow((9, 10), (20, 24), (26, 28)),
+    "NonSignalizedJunctionLeftTurn": _flow((8, 10), (20, 24), (26, 30)),
+    "SignalizedJunctionLeftTurnEnterFlow": _flow((8, 10), (20, 24), (26, 30)),
+    "NonSignalizedJunctionLeftTurnEnterFlow": _flow((8, 10), (17, 19), (26, 30)),
+    "EnterActorFlow": _flow((12, 14), (25, 30), (33, 39)),
+    "CrossingBicycleFlow": _flow((8, 9), (13, 15), (25, 30)),
+    "SignalizedJunctionRightTurn": _flow((10, 12), (20, 24), (28, 38)),
+    "NonSignalizedJunctionRightTurn": _flow((8, 11), (18, 22), (27, 30)),
+    "InterurbanActorFlow": _flow((15, 16), (42, 53), (78, 98)),
+    "InterurbanAdvancedActorFlow": _flow((16, 18), (36, 42), (84, 94)),
+    "MergerIntoSlowTraffic": _flow((9, 10), (14, 16), (33, 42)),
+    "MergerIntoSlowTrafficV2": _flow((10, 10), (11, 14), (30, 34)),
+    "HighwayExit": _flow((10, 15), (11, 20), (33, 46)),
+    "YieldToEmergencyVehicle": {"distance": _r(26, 30)},
+    "ParkingExit": {"direction": _RIGHT, "front_vehicle_distance": _r(9, 9), "behind_vehicle_distance": _r(9, 9)},
+}  # fmt: skip
+
+#: LB2.0 routes_training.xml, min/max per type (see the module docstring for the exceptions).
+_TRAINING: dict[str, dict[str, Spec]] = {
+    "Accident": {"distance": _r(50, 200), "direction": _BOTH, "speed": _r(40, 70)},
+    "ParkedObstacleTwoWays": {"distance": _r(50, 130), "frequency": _iv((15, 75), (80, 200))},
+    "ParkedObstacle": {"distance": _r(50, 160), "direction": _BOTH, "speed": _r(40, 70)},
+    "ConstructionObstacle": {"distance": _r(70, 200), "direction": _BOTH, "speed": _r(40, 60)},
+    "AccidentTwoWays": {"distance": _r(70, 170), "frequency": _iv((30, 75), (105, 220))},
+    "ConstructionObstacleTwoWays": {"distance": _r(70, 300), "frequency": _iv((35, 75), (80, 220))},
+    "HazardAtSideLane": {"distance": _r(50, 90), "speed": _r(30, 60), "bicycle_drive_distance": _r(60, 200),
+                         "bicycle_speed": _r(8, 15)},
+    "HazardAtSideLaneTwoWays": {"distance": _r(40, 135), "frequency": _r(75, 140),
+                                "bicycle_drive_distance": _r(40, 300), "bicycle_speed": _r(5, 12)},
+    "VehicleOpensDoorTwoWays": {"distance": _r(35, 80), "direction": _RIGHT, "frequency": _iv((25, 40), (80, 105))},
+    "InvadingTurn": {"distance": _r(90, 200), "offset": FloatRange(0.15, 0.40)},
+    "DynamicObjectCrossing": {"blocker_model": _BLOCKERS, "distance": _r(15, 70), "direction": _RIGHT,
+                              "crossing_angle": _r(0, 20)},
+    "ParkingCrossingPedestrian": {"distance": _r(30, 50), "direction": _RIGHT, "crossing_angle": _r(5, 15)},
+    "ParkingCutIn": {"direction": _RIGHT},
+    "StaticCutIn": {"distance": _r(80, 170), "direction": _BOTH},
+    "SignalizedJunctionLeftTurn": _flow((8, 19), (10, 40), (40, 85)),
+    "NonSignalizedJunctionLeftTurn": _flow((8, 20), (10, 80), (40, 110)),
+    "SignalizedJunctionLeftTurnEnterFlow": _BENCH2DRIVE220["SignalizedJunctionLeftTurnEnterFlow"],
+    "NonSignalizedJunctionLeftTurnEnterFlow": _BENCH2DRIVE220["NonSignalizedJunctionLeftTurnEnterFlow"],
+    "EnterActorFlow": _flow((15, 20), (15, 30), (30, 70)),
+    "CrossingBicycleFlow": _flow((5, 10), (5, 30), (18, 60)),
+    "SignalizedJunctionRightTurn": _flow((10, 18), (10, 40), (35, 80)),
+    "NonSignalizedJunctionRightTurn": _flow((5, 21), (10, 50), (30, 110)),
+    "InterurbanActorFlow": _flow((15, 20), (25, 65), (75, 120)),
+    "InterurbanAdvancedActorFlow": _flow((15, 18), (20, 50), (75, 105)),
+    "MergerIntoSlowTraffic": _flow((8, 17), (10, 20), (30, 50)),
+    "MergerIntoSlowTrafficV2": _flow((10, 10), (15, 15), (30, 30)),
+    "HighwayExit": _flow((10, 15), (10, 25), (25, 50)),
+    "YieldToEmergencyVehicle": {"distance": _r(110, 140)},
+    "ParkingExit": {"direction": _RIGHT, "front_vehicle_distance": _r(9, 9), "behind_vehicle_distance": _r(9, 9)},
+}  # fmt: skip
+
+
+def _frozen(types: dict[str, dict[str, Spec]]) -> Mapping[str, Mapping[str, Spec]]:
+    return MappingProxyType({k: MappingProxyType(dict(v)) for k, v in types.items()})
+
+
+TRAINING = ParamSet("training", _frozen(_TRAINING))
+BENCH2DRIVE220 = ParamSet("bench2drive220", _frozen(_BENCH2DRIVE220))
+#: The sets by name; the first is the default.
+PARAM_SETS: Mapping[str, ParamSet] = MappingProxyType({s.name: s for s in (TRAINING, BENCH2DRIVE220)})
+DEFAULT_PARAMS = TRAINING.name
+
+
+def param_set(which: str | ParamSet) -> ParamSet:
+    """The set named ``which`` (a :class:`ParamSet` passes through); ValueError names the known sets."""
+    if isinstance(which, ParamSet):
+        return which
+    try:
+        return PARAM_SETS[which]
+    except KeyError:
+        raise ValueError(f"unknown parameter set {which!r}; choose one of {', '.join(PARAM_SETS)}") from None

@@ -182,6 +182,13 @@ def main(argv: list[str] | None = None) -> int:
         default="training",
         help="parameter ranges of generated routes (default training: LB2.0 routes_training.xml)",
     )
+    p.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="[TOWN:]ROUTE_ID",
+        help="rerun only these routes of the table (repeatable), e.g. Town100:29160010",
+    )
     p.add_argument("--workers", type=int, default=1, help="routes in parallel processes")
     p.add_argument("--out", type=Path, default=None, help="where records and the run log go (default: a temp dir)")
     p.add_argument("-v", "--verbose", action="store_true")
@@ -206,6 +213,12 @@ def main(argv: list[str] | None = None) -> int:
         tasks, errors = generated_tasks(
             scenarios, args.routes_per_scenario, args.towns.split(","), args.seed, out, args.params
         )
+    if args.only:
+        wanted = set(args.only)
+        tasks = [t for t in tasks if t.route.id in wanted or f"{t.route.town}:{t.route.id}" in wanted]
+        if not tasks:
+            print(f"no route matches --only {' '.join(args.only)}", file=sys.stderr)
+            return 2
     config = CollectConfig(out=out, sensors=False, workers=args.workers)
     done = 0
 

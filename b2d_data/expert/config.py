@@ -189,6 +189,11 @@ class ExpertConfig:
     invading_turn_end: float = 10.0  # after the last cone
     invading_turn_search_offset: float = 10.0  # the last cone is searched from 10 m after the first
     invading_turn_fence_margin: float = 0.3
+    # Not PDM-Lite's: the shift starts where the ego is when the cones appear (the trigger), not 15 m before the
+    # first cone. The invading flow drives from its source all the way back to the trigger; with the training
+    # ranges (distance up to 200 m, cones over distance / 2) the ego meets it 50-100 m before the cones, where an
+    # unshifted ego and a car invading the lane stop nose to nose for good (route 29160010, Town100, seed 29).
+    invading_turn_shift_from_trigger: bool = True
     path_clear_safety_distance: float = 10.0
     path_clear_safety_time: float = 0.2
     path_clear_lane_trace_distance: int = 100  # metres (1 m steps) the target lane is traced back

@@ -198,7 +198,8 @@ class ObstacleScenarioManager:
     # -- the scenario kinds ----------------------------------------------------------------------------------
     def _invading_turn(self, ego: ActorState, route: DenseRoute, hint: ScenarioHint, first: ActorState,
                        last: ActorState | None, record: ScenarioRecord, target_speed: float) -> ObstacleResult:
-        if float(np.linalg.norm(_xyz(first) - _xyz(ego))) < self.config.max_distance_to_process_scenario:
+        near = float(np.linalg.norm(_xyz(first) - _xyz(ego))) < self.config.max_distance_to_process_scenario
+        if near or self.config.invading_turn_shift_from_trigger:
             offset = float(hint.offset) if hint.offset is not None else 0.0
             start, end = shift_route_for_invading_turn(route, _xyz(first), _xyz(last or first), offset)
             record.changed_route, record.from_index, record.to_index, record.done = True, start, end, True

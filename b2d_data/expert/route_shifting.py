@@ -116,7 +116,8 @@ def shift_route_for_invading_turn(route: DenseRoute, first_location: np.ndarray,
                                   offset: float) -> tuple[int, int]:
     """Offset the route to the right by |offset| from 15 m before the first cone to 10 m after the last (§1.9).
 
-    Next to a shoulder the offset is reduced by 0.3 m and capped at the shoulder's width (a fence may stand
+    With ``invading_turn_shift_from_trigger`` the shift starts at the ego's route point instead when that comes
+    first (see the config). Next to a shoulder the offset is reduced by 0.3 m and capped at the shoulder's width (a fence may stand
     there). Returns the shifted index range.
     """
     from b2d_data.maps import LaneType
@@ -125,6 +126,8 @@ def shift_route_for_invading_turn(route: DenseRoute, first_location: np.ndarray,
     first_idx = route.closest_index(route.index, first_location)
     last_idx = route.closest_index(first_idx + cfg.points(cfg.invading_turn_search_offset), last_location)
     start = max(0, first_idx - cfg.points(cfg.invading_turn_start))
+    if cfg.invading_turn_shift_from_trigger:
+        start = min(start, route.index)
     end = min(len(route) - 1, last_idx + cfg.points(cfg.invading_turn_end))
     for idx in range(start, end):
         d = route.points[idx + 1, :2] - route.points[idx, :2]

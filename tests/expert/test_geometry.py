@@ -345,11 +345,19 @@ def test_vehicle_forecast_matches_the_one_step_model(make_vehicle):
 def test_invading_turn_offsets_route_to_the_right(make_route):
     from b2d_data.expert.route_shifting import shift_route_for_invading_turn
 
+    from dataclasses import replace
+
     route = make_route(100.0)
+    route.config = replace(route.config, invading_turn_shift_from_trigger=False)  # PDM-Lite's region
     start, end = shift_route_for_invading_turn(route, np.array([40.0, 0.0]), np.array([60.0, 0.0]), 1.2)
     assert (start, end) == (400 - 150, 600 + 100)  # 15 m before the first cone, 10 m after the last
     assert np.allclose(route.points[start:end, 1], 1.2)  # +y is right of an east-bound route
     assert route.points[start - 1, 1] == 0.0 and route.points[end, 1] == 0.0
+    # ours (the default): from the ego's route point (index 0 here, the route's start) to 10 m after the last cone
+    route = make_route(100.0)
+    assert route.index == 0
+    assert shift_route_for_invading_turn(route, np.array([40.0, 0.0]), np.array([60.0, 0.0]), 1.2) == (0, 700)
+    assert np.allclose(route.points[0:700, 1], 1.2) and route.points[700, 1] == 0.0
     # next to a shoulder the offset keeps 0.3 m from the fence
     shoulder = make_route(100.0, right_type=__import__("b2d_data.maps", fromlist=["LaneType"]).LaneType.SHOULDER)
     shift_route_for_invading_turn(shoulder, np.array([40.0, 0.0]), np.array([60.0, 0.0]), 1.2)

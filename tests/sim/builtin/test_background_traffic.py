@@ -194,3 +194,21 @@ def test_clear_and_stop_the_next_junction(town01, route):
         assert not inside(s, ("junction",))
         waiting |= {v for v, o in run.bg.last_outputs.items() if o.reason == "junction_stopped"}
     assert waiting
+
+
+def test_no_car_is_born_in_the_ego_lane_where_the_ego_cannot_stop_for_it():
+    from types import SimpleNamespace
+
+    from b2d_data.format.transform import Location, Rotation, Transform
+    from b2d_data.sim.builtin.background_traffic import BackgroundTrafficManager
+
+    # ego at the origin heading +x at 18 m/s; closing 18 m/s at 3 m/s^2 takes 18² / 6 = 54 m, plus the 10 m gap
+    ego = SimpleNamespace(transform=Transform(Location(0.0, 0.0, 0.0), Rotation(yaw=0.0)), speed=lambda: 18.0)
+    too_close = BackgroundTrafficManager._too_close_ahead
+    assert too_close(ego, Location(19.5, 0.0, 0.0), 0.0)  # route 29430003's car: born standing 19.5 m ahead
+    assert too_close(ego, Location(63.9, 0.0, 0.0), 0.0)  # 53.9 m of room < 54 m
+    assert not too_close(ego, Location(64.1, 0.0, 0.0), 0.0)  # 54.1 m > 54 m
+    assert not too_close(ego, Location(19.5, 0.0, 0.0), 18.0)  # born at the ego's speed: nothing to close
+    # at 12 m/s it closes (324 - 144) / 6 = 30 m: 35 m ahead leaves 25 m, 45 m ahead 35 m
+    assert too_close(ego, Location(35.0, 0.0, 0.0), 12.0) and not too_close(ego, Location(45.0, 0.0, 0.0), 12.0)
+    assert not too_close(ego, Location(-19.5, 0.0, 0.0), 0.0)  # behind the ego

@@ -122,7 +122,8 @@ class LightSchedule:
     """scenario_runner's TrafficLightFreezer sequence: phases of forced states, each for a duration or until the end.
 
     A phase with duration ``None`` lasts until :meth:`release`; once the last timed phase is over the lights are
-    released to their normal cycle.
+    released to their normal cycle with the state each had before the schedule first touched it, as
+    ``TrafficLightFreezer.terminate`` restores them (its per-light timings excepted: our lights have none).
     """
 
     def __init__(self, sim: Simulator, phases: Sequence[tuple[Mapping[int, TrafficLightState], float | None]]) -> None:
@@ -131,6 +132,7 @@ class LightSchedule:
         self._index = -1
         self._phase_start = 0.0
         self._touched: set[int] = set()
+        self._before: dict[int, TrafficLightState] = {}
         self._released = False
         self._last: Snapshot | None = None
 
@@ -138,6 +140,9 @@ class LightSchedule:
         self._index = index
         self._phase_start = snapshot.timestamp
         for light_id, state in sorted(self.phases[index][0].items()):
+            info = snapshot.traffic_lights.get(light_id)
+            if light_id not in self._touched and info is not None:
+                self._before[light_id] = info.state
             self.sim.set_traffic_light_state(light_id, state, freeze=True)
             self._touched.add(light_id)
 
@@ -157,7 +162,8 @@ class LightSchedule:
                 self.release(snapshot)
 
     def release(self, snapshot: Snapshot | None = None) -> None:
-        """Unfreeze every light this schedule touched (each keeps its state until its cycle next changes)."""
+        """Unfreeze every light this schedule touched, back in the state it had before (until its cycle next
+        changes stage)."""
         if self._released:
             return
         self._released = True
@@ -165,8 +171,8 @@ class LightSchedule:
         current = snapshot.traffic_lights if snapshot is not None else {}
         for light_id in sorted(self._touched):
             info = current.get(light_id)
-            state = info.state if info is not None else TrafficLightState.RED
-            self.sim.set_traffic_light_state(light_id, state, freeze=False)
+            now = info.state if info is not None else TrafficLightState.RED
+            self.sim.set_traffic_light_state(light_id, self._before.get(light_id, now), freeze=False)
 
 
 def rightmost_driving(wp: Waypoint) -> Waypoint:

@@ -149,8 +149,11 @@ class BackgroundTrafficManager:
         # the removed lanes themselves: road vehicles of the ego's lane follow the route, which may change into one
         self._removed_lanes: set[tuple[int, int]] = set()
         self._max_speed: float | None = None
+        # StopFront/BackVehicles: a request is taken at the next tick, where the vehicles it stops are picked;
+        # those stay stopped until released (LB2.0 stops the road vehicles of that moment, not later arrivals)
         self._stop_front = False
         self._stop_back = False
+        self._stopped: dict[str, set[int]] = {"front": set(), "back": set()}
         self._road_sources = True
         self._front_clear_until = -math.inf  # route s before which no road vehicle is spawned ahead
         self._opposite_last: dict[int, int] = {}
@@ -181,6 +184,7 @@ class BackgroundTrafficManager:
         self._removed_lanes.clear()
         self._max_speed = None
         self._stop_front = self._stop_back = False
+        self._stopped = {"front": set(), "back": set()}
         self._road_sources = True
         self._front_clear_until = -math.inf
         self._opposite_last.clear()
@@ -243,20 +247,22 @@ class BackgroundTrafficManager:
         self._max_speed = None if speed is None else max(0.0, float(speed))
 
     def stop_front_vehicles(self) -> None:
-        """Brake every background vehicle in front of the ego that drives its way (within 45°)."""
+        """Brake every background vehicle now in front of the ego that drives its way (within 45°)."""
         self._stop_front = True
 
     def start_front_vehicles(self) -> None:
         """Release the vehicles stopped by :meth:`stop_front_vehicles`."""
         self._stop_front = False
+        self._stopped["front"].clear()
 
     def stop_back_vehicles(self) -> None:
-        """Brake every background vehicle behind the ego that drives its way (within 45°)."""
+        """Brake every background vehicle now behind the ego that drives its way (within 45°)."""
         self._stop_back = True
 
     def start_back_vehicles(self) -> None:
         """Release the vehicles stopped by :meth:`stop_back_vehicles`."""
         self._stop_back = False
+        self._stopped["back"].clear()
 
     def change_road_behavior(self, spawn_dist: float | None = None, extra_space: float | None = None) -> None:
         """Change the 15 m spawn spacing and the radius offset of the ego's road."""
@@ -705,11 +711,16 @@ class BackgroundTrafficManager:
                 elif rel_x > r_min:
                     target *= (r_max - rel_x) / (r_max - r_min)
             if (self._stop_front or self._stop_back) and veh.source != "opposite" and _same_heading(ego, actor):
-                if (self._stop_front and rel_x > 0.0) or (self._stop_back and rel_x <= 0.0):
-                    target = 0.0
+                if self._stop_front and rel_x > 0.0:
+                    self._stopped["front"].add(vid)
+                if self._stop_back and rel_x <= 0.0:
+                    self._stopped["back"].add(vid)
+            if vid in self._stopped["front"] or vid in self._stopped["back"]:
+                target = 0.0
             veh.agent.target_speed = target
             junction = self._junction_by_id(veh.junction_id) if veh.junction_id is not None else None
             veh.agent.stop_before_junction = bool(junction is not None and junction.stop_entries)
+        self._stop_front = self._stop_back = False  # the requests are taken: later arrivals drive on
 
     def _replan(self, veh: _Vehicle, actor: Any) -> None:
         wp = self._map.get_waypoint(actor.transform.location)

@@ -556,3 +556,23 @@ def test_hidden_actors_appear_at_the_trigger(town, scenario_type):
         # it stands from the trigger until the time-to-arrival trigger, a few seconds later at 5 m/s
         (walker,) = speeds.values()
         assert walker[0] == 0.0 and sum(1 for v in walker if v < 0.01) >= 20
+
+
+def test_parking_cut_in_gives_the_road_extra_room_only_during_the_cut_in(town):
+    # parking_cut_in.py: ChangeRoadBehavior(extra_space=20) when the cut-in starts (time to arrival), and
+    # ChangeRoadBehavior(extra_space=0) once the scenario is over
+    route = make_routes(town, "ParkingCutIn", 1, seed=0)[0]
+    seen: list[tuple[bool, float]] = []  # (the cut-in car is driving, extra space)
+    bg: list = []
+
+    def watch(snap, dense, manager):
+        scenario = manager.scenarios[0]
+        bg[:] = [scenario.ctx.sim.background]
+        if scenario in manager.active:
+            seen.append((scenario._agent is not None, scenario.ctx.sim.background.settings.extra_space))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    assert {extra for driving, extra in seen if not driving} == {0.0}
+    assert {extra for driving, extra in seen if driving} == {20.0}
+    assert bg[0].settings.extra_space == 0.0  # given back at the end

@@ -3,8 +3,8 @@
 ParkingCutIn: a blocker car parked 28 m ahead and the cut-in car 35 m ahead, both in the ``direction``-side
 parking lane pushed toward its outer edge (hand brake). At the trigger the background clears 45 m ahead; when the
 ego's time to arrival at the cut-in car drops below 2.35 s (or within 10 m) it pulls out at 20 km/h into the ego's
-lane (stopping for vehicles in its way, ignoring lights) and drives 30 m; then both cars are removed and the
-background gets 20 m extra space.
+lane (stopping for vehicles in its way, ignoring lights) and drives 30 m; then both cars are removed. The
+background gets 20 m extra space from the pull-out to the scenario's end.
 
 StaticCutIn: a queue of six stopped cars 11 m apart in the ``direction``-side lane from ``distance`` m ahead, the
 third one the cut-in car (hidden until the trigger, when the background clears distance + 66 m ahead and leaves
@@ -126,6 +126,8 @@ class ParkingCutIn(Scenario):
             if not self._tta.check(ego):
                 return ScenarioStatus.RUNNING
             log.debug("%s: the cut-in car pulls out", self.name)
+            # LB2.0 (parking_cut_in.py) gives the road 20 m more room during the cut-in and takes it back at the end
+            self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
             self._agent = ConstantVelocityAgent(
                 self.ctx.sim, self.cars[1], self.track, self.adversary_speed, detect_vehicles=True,
                 ignore=[self.cars[0]],
@@ -135,9 +137,13 @@ class ParkingCutIn(Scenario):
             for car in self.cars:
                 self.destroy(car)
             self.cars = []
-            self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
             return ScenarioStatus.SUCCESS
         return ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """The road's extra room goes back to 0 (LB2.0's ChangeRoadBehavior(extra_space=0) at the end)."""
+        if self._agent is not None:
+            self.ctx.sim.background.change_road_behavior(extra_space=0.0)
 
 
 @register

@@ -2,8 +2,10 @@
 ego turns across it.
 
 The bicycles (CARLA's bicycle blueprints, each with its rider) ride from ``start_actor_flow`` on the bike lane
-through the junction to 40 m past its exit at ``flow_speed`` m/s, ignoring lights, the path pre-populated, a new
-one once the last has ridden a gap drawn from ``source_dist_interval``. On a signalised junction the ego's light is
+through the junction to 40 m past its exit at ``flow_speed`` m/s, ignoring lights and every vehicle (the ego too,
+collision or not: LB2.0's ``BicycleFlow`` drives them with BasicAgents set to ``ignore_vehicles`` and has no
+collision sensor), the path pre-populated, a new one once the last has ridden a gap drawn from
+``source_dist_interval``. On a signalised junction the ego's light is
 red for 5 s, then green (the others red). The background clears the junction and stops its entries; unlike LB2.0
 the route sources are off while the bicycles ride. The scenario ends when the ego leaves the junction, or after
 240 s.
@@ -107,7 +109,7 @@ class CrossingBicycleFlow(JunctionScenario):
         bikes = blueprints.filter_ids("vehicle.*", base_type="bicycle")
         self.flow = ActorFlow(
             self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True,
-            blueprint_ids=bikes,
+            blueprint_ids=bikes, yield_after_collision=False,
         )  # fmt: skip
         self.flow.start()
         lights = self.junction_lights(snapshot)

@@ -378,8 +378,9 @@ class Expert:
         past). A deviation from PDM-Lite, whose 2 s forecast and trailing-car exemption assume that others brake.
 
         LB2.0's ActorFlow cars ignore vehicles until their first collision, so (1) they are checked over
-        ``commit_forecast_length`` too, the trailing ones included, against the ego driving on at its target
-        speed, so that it waits before it enters a flow's path rather than in it; and (2) where braking to a stand
+        ``commit_forecast_length`` too, the trailing ones included (not those behind that go the ego's way),
+        against the ego driving on at its target speed, so that it waits before it enters a flow's path rather
+        than in it; and (2) where braking to a stand
         from now on would meet such a car anyway (the ego has already edged into its path, or the car comes from
         behind), braking is no escape: the ego drives on when driving on at the target speed clears that car's
         real box by ``commit_margin``, or when the car comes from behind. Bicycles count too (LB2.0's BicycleFlow
@@ -392,11 +393,24 @@ class Expert:
         frames = int(cfg.fps * cfg.commit_forecast_length)
         tracks = forecast_vehicles(cfg, flow, frames, False)
         go = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
-        late = set(colliding(go, [t for t in tracks if t.actor_id not in leading]))
+        by_id = {v.id: v for v in flow}
+        yaw = math.radians(ego.transform.rotation.yaw)
+
+        def behind(v: ActorState) -> bool:
+            dx, dy = v.location.x - ego.location.x, v.location.y - ego.location.y
+            return dx * math.cos(yaw) + dy * math.sin(yaw) < 0.0
+
+        def following(v: ActorState) -> bool:
+            diff = abs((v.transform.rotation.yaw - ego.transform.rotation.yaw + 180.0) % 360.0 - 180.0)
+            return behind(v) and diff < cfg.leading_max_yaw_difference
+
+        # cars behind that go the ego's way are the merge's and the lane-change gate's business (their gaps) and
+        # would otherwise hold a slow ego at the end of a ramp for ever; the long check is for crossing paths
+        late = set(colliding(go, [t for t in tracks if t.actor_id not in leading
+                                  and not following(by_id[t.actor_id])]))  # fmt: skip
         threats = late | (hits & {v.id for v in flow})
         if not threats:
             return set(), set()
-        by_id = {v.id: v for v in flow}
         real = {t.actor_id: with_extents(t, by_id[t.actor_id]) for t in tracks if t.actor_id in threats}
         stop = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed,
                                                frames, braking=True), ego)  # fmt: skip
@@ -404,10 +418,7 @@ class Expert:
         if not struck:
             return late, set()
         blocked = set(colliding(with_extents(go, ego, cfg.commit_margin), [real[i] for i in struck]))
-        yaw = math.radians(ego.transform.rotation.yaw)
-        behind = {i for i in struck if (by_id[i].location.x - ego.location.x) * math.cos(yaw)
-                  + (by_id[i].location.y - ego.location.y) * math.sin(yaw) < 0.0}  # fmt: skip
-        drive_on = (struck - blocked) | behind
+        drive_on = (struck - blocked) | {i for i in struck if behind(by_id[i])}
         if drive_on:
             log.debug("braking would leave the ego in the path of %s: it drives on", sorted(drive_on))
         return late - drive_on, drive_on

@@ -132,7 +132,9 @@ class Expert:
         target_speed = min(speed_limit * cfg.ratio_target_speed_limit, lane_change_cap)
         if route.is_junction[index : index + cfg.points(cfg.junction_lookahead)].any():
             target_speed = min(target_speed, cfg.max_speed_in_junction)
-        keep_up = self._flow_speed_along_route(snapshot, ego, route)
+        # the flow checks below act only while a scenario whose flow never brakes for the ego runs (its hint)
+        flows = any(h.scenario_type in FLOW_TYPES for h in hints)
+        keep_up = self._flow_speed_along_route(snapshot, ego, route) if flows else 0.0
         if keep_up > target_speed:
             # A deviation from PDM-Lite: a flow that never brakes for the ego (LB2.0's ActorFlow) and drives where
             # the ego drives is driven with at its own speed, even above the speed limit (LB2.0 scores no speeding),
@@ -145,7 +147,7 @@ class Expert:
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
         else:
-            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by)
+            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
         merging = merge_hint(hints)
         if merging is not None and not obstacle.keep_driving:
@@ -249,7 +251,7 @@ class Expert:
 
     # -- hazards -----------------------------------------------------------------------------------------------
     def _hazards(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,
-                 reduced_by: ReducedBy | None) -> _Hazards:
+                 reduced_by: ReducedBy | None, flows: bool = False) -> _Hazards:
         """Target speeds for every hazard class and their minimum (§1.6–1.7); ``brake`` when it is 0."""
         cfg = self.config
         ego_loc = _xyz(ego)
@@ -286,7 +288,8 @@ class Expert:
         by_id = {v.id: v for v in checked}
         speed_bicycle = speed_vehicle = speed_walker = initial_speed
         hits = colliding(ego_track, tracks)
-        flow_hits, drive_on = self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed)
+        flow_hits, drive_on = (self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed) if flows
+                               else (set(), set()))  # fmt: skip
         by_id.update({v.id: v for v in nearby})
         hits = sorted((set(hits) | flow_hits) - drive_on,
                       key=lambda i: float(np.linalg.norm(_xyz(by_id[i]) - ego_loc)))  # fmt: skip
@@ -294,10 +297,10 @@ class Expert:
             actor = by_id[actor_id]
             distance = float(np.linalg.norm(_xyz(actor) - ego_loc))
             yaw_difference = abs((actor.transform.rotation.yaw - ego.transform.rotation.yaw + 180.0) % 360 - 180.0)
-            # A deviation from PDM-Lite, whose IDM takes every bicycle as one riding ahead of the ego: a bicycle that
-            # crosses or comes toward the ego is braked for like a car (a crossing flow's bicycles never brake for
-            # the ego, LB2.0's BicycleFlow).
-            if actor.base_type == "bicycle" and yaw_difference < cfg.leading_max_yaw_difference:
+            # A deviation from PDM-Lite, whose IDM takes every bicycle as one riding ahead of the ego: while a flow
+            # scenario runs, a bicycle that crosses or comes toward the ego is braked for like a car (a crossing
+            # flow's bicycles never brake for the ego, LB2.0's BicycleFlow).
+            if actor.base_type == "bicycle" and (not flows or yaw_difference < cfg.leading_max_yaw_difference):
                 s = idm_target_speed(cfg, initial_speed, speed, 2.0 * actor.bounding_box.extent.x, actor.speed(),
                                      distance, cfg.idm_bicycle_s0, cfg.idm_bicycle_T)
                 speed_bicycle = min(speed_bicycle, s)
@@ -452,6 +455,15 @@ class Expert:
                                        sign_id == affecting and not self.stop_signs.cleared))
         return tuple(out)
 
+
+#: Scenarios whose flows (LB2.0's ActorFlow, BicycleFlow) never brake for the ego; their hints switch the expert's
+#: flow checks on (``_flow_cars``, ``_flow_speed_along_route``, crossing bicycles braked for like cars).
+FLOW_TYPES = frozenset({
+    "SignalizedJunctionLeftTurn", "NonSignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "SignalizedJunctionRightTurn", "NonSignalizedJunctionRightTurn",
+    "EnterActorFlow", "InterurbanActorFlow", "InterurbanAdvancedActorFlow", "MergerIntoSlowTraffic",
+    "MergerIntoSlowTrafficV2", "HighwayExit", "CrossingBicycleFlow",
+})  # fmt: skip
 
 #: ``role_name`` of the actors a scenario spawns (``scenarios.framework.SCENARIO_ROLE``; the expert is privileged).
 _SCENARIO_ROLE = "scenario"

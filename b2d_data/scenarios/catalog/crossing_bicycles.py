@@ -24,7 +24,7 @@ from b2d_data.scenarios.catalog.road_geometry import lane_walk
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -119,6 +119,10 @@ class CrossingBicycleFlow(JunctionScenario):
                 (light_states(lights, []), self.green_light_delay), (light_states(lights, ego_lights), None),
             ])  # fmt: skip
             self.lights.update(snapshot)
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Ride the bicycles; SUCCESS once the ego left the junction."""

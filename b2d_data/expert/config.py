@@ -143,6 +143,14 @@ class ExpertConfig:
     trailing_lane_change_lookbehind: float = 15.0
     #: CARLA's forecast reads ``brake`` through an unsigned-int cast, so only a full brake counts (§1.6).
     other_vehicle_brake_threshold: float = 1.0
+    #: Vehicles that never brake for the ego (a scenario's flows) are also forecast over this horizon (s), and
+    #: driving on counts as clearing one with this margin (m) around the real boxes (expert.py, ``_flow_cars``; a
+    #: deviation from PDM-Lite).
+    commit_forecast_length: float = 4.0
+    commit_margin: float = 0.1
+    #: A flow's car drives along the route within this distance (m) of the next ``flow_route_ahead`` m of it.
+    flow_route_distance: float = 2.5
+    flow_route_ahead: float = 40.0
 
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this

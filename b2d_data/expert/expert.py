@@ -27,6 +27,7 @@ from b2d_data.expert.forecasting import (
     num_future_frames,
     trailing_vehicle_ids,
     valid_vehicle,
+    with_extents,
 )
 from b2d_data.expert.hazard_heuristic import should_brake
 from b2d_data.expert.idm import idm_target_speed
@@ -131,6 +132,14 @@ class Expert:
         target_speed = min(speed_limit * cfg.ratio_target_speed_limit, lane_change_cap)
         if route.is_junction[index : index + cfg.points(cfg.junction_lookahead)].any():
             target_speed = min(target_speed, cfg.max_speed_in_junction)
+        # the flow checks below act only while a scenario whose flow never brakes for the ego runs (its hint)
+        flows = any(h.scenario_type in FLOW_TYPES for h in hints)
+        keep_up = self._flow_speed_along_route(snapshot, ego, route) if flows else 0.0
+        if keep_up > target_speed:
+            # A deviation from PDM-Lite: a flow that never brakes for the ego (LB2.0's ActorFlow) and drives where
+            # the ego drives is driven with at its own speed, even above the speed limit (LB2.0 scores no speeding),
+            # or its cars run into the ego from behind (EnterActorFlow's 12-14 m/s flows on 40 km/h roads).
+            target_speed = min(keep_up, lane_change_cap, max(target_speed, cfg.max_speed_in_junction))
 
         if gate is not None:
             target_speed = min(target_speed, gate.step(snapshot.vehicles(), ego, route, target_speed).target_speed)
@@ -138,7 +147,7 @@ class Expert:
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
         else:
-            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by)
+            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
         merging = merge_hint(hints)
         if merging is not None and not obstacle.keep_driving:
@@ -242,7 +251,7 @@ class Expert:
 
     # -- hazards -----------------------------------------------------------------------------------------------
     def _hazards(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,
-                 reduced_by: ReducedBy | None) -> _Hazards:
+                 reduced_by: ReducedBy | None, flows: bool = False) -> _Hazards:
         """Target speeds for every hazard class and their minimum (§1.6–1.7); ``brake`` when it is 0."""
         cfg = self.config
         ego_loc = _xyz(ego)
@@ -278,11 +287,20 @@ class Expert:
         tracks = forecast_vehicles(cfg, checked, frames, near_lc)
         by_id = {v.id: v for v in checked}
         speed_bicycle = speed_vehicle = speed_walker = initial_speed
-        hits = sorted(colliding(ego_track, tracks), key=lambda i: float(np.linalg.norm(_xyz(by_id[i]) - ego_loc)))
+        hits = colliding(ego_track, tracks)
+        flow_hits, drive_on = (self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed) if flows
+                               else (set(), set()))  # fmt: skip
+        by_id.update({v.id: v for v in nearby})
+        hits = sorted((set(hits) | flow_hits) - drive_on,
+                      key=lambda i: float(np.linalg.norm(_xyz(by_id[i]) - ego_loc)))  # fmt: skip
         for actor_id in hits:
             actor = by_id[actor_id]
             distance = float(np.linalg.norm(_xyz(actor) - ego_loc))
-            if actor.base_type == "bicycle":
+            yaw_difference = abs((actor.transform.rotation.yaw - ego.transform.rotation.yaw + 180.0) % 360 - 180.0)
+            # A deviation from PDM-Lite, whose IDM takes every bicycle as one riding ahead of the ego: while a flow
+            # scenario runs, a bicycle that crosses or comes toward the ego is braked for like a car (a crossing
+            # flow's bicycles never brake for the ego, LB2.0's BicycleFlow).
+            if actor.base_type == "bicycle" and (not flows or yaw_difference < cfg.leading_max_yaw_difference):
                 s = idm_target_speed(cfg, initial_speed, speed, 2.0 * actor.bounding_box.extent.x, actor.speed(),
                                      distance, cfg.idm_bicycle_s0, cfg.idm_bicycle_T)
                 speed_bicycle = min(speed_bicycle, s)
@@ -333,6 +351,81 @@ class Expert:
         result.brake = target == 0.0
         return result
 
+    def _flow_speed_along_route(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute) -> float:
+        """The highest speed of the cars of a scenario's flow within ``detection_radius`` that drive along the route
+        from ``flow_route_ahead`` metres behind the ego to as far ahead (within ``leading_max_yaw_difference`` of
+        its heading there and ``flow_route_distance`` of it); 0 when there is none."""
+        cfg = self.config
+        flow = [v for v in snapshot.vehicles() if v.role_name == _SCENARIO_ROLE and v.base_type != "bicycle"
+                and v.speed() >= cfg.other_vehicle_slow_speed
+                and v.location.distance_2d(ego.location) < cfg.detection_radius]  # fmt: skip
+        if not flow or route.index >= len(route):
+            return 0.0
+        step = cfg.points_per_meter
+        begin = max(0, route.index - cfg.points(cfg.flow_route_ahead))
+        end = route.index + cfg.points(cfg.flow_route_ahead)
+        points = route.points[begin:end:step, :2]
+        headings = route.headings[begin:end:step]
+        best = 0.0
+        for v in flow:
+            d = np.hypot(points[:, 0] - v.location.x, points[:, 1] - v.location.y)
+            k = int(np.argmin(d))
+            diff = abs((headings[k] - v.transform.rotation.yaw + 180.0) % 360.0 - 180.0)
+            if d[k] < cfg.flow_route_distance and diff < cfg.leading_max_yaw_difference:
+                best = max(best, v.speed())
+        return best
+
+    def _flow_cars(self, ego: ActorState, route: DenseRoute, nearby: list[ActorState], leading: set[int],
+                   hits: set[int], initial_speed: float) -> tuple[set[int], set[int]]:
+        """Cars that never brake for the ego (a scenario's flows): (those to brake for, forecast hits to drive on
+        past). A deviation from PDM-Lite, whose 2 s forecast and trailing-car exemption assume that others brake.
+
+        LB2.0's ActorFlow cars ignore vehicles until their first collision, so (1) they are checked over
+        ``commit_forecast_length`` too, the trailing ones included (not those behind that go the ego's way),
+        against the ego driving on at its target speed, so that it waits before it enters a flow's path rather
+        than in it; and (2) where braking to a stand
+        from now on would meet such a car anyway (the ego has already edged into its path, or the car comes from
+        behind), braking is no escape: the ego drives on when driving on at the target speed clears that car's
+        real box by ``commit_margin``, or when the car comes from behind. Bicycles count too (LB2.0's BicycleFlow
+        ignores vehicles).
+        """
+        cfg = self.config
+        flow = [v for v in nearby if v.role_name == _SCENARIO_ROLE and v.speed() >= cfg.other_vehicle_slow_speed]
+        if not flow:
+            return set(), set()
+        frames = int(cfg.fps * cfg.commit_forecast_length)
+        tracks = forecast_vehicles(cfg, flow, frames, False)
+        go = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
+        by_id = {v.id: v for v in flow}
+        yaw = math.radians(ego.transform.rotation.yaw)
+
+        def behind(v: ActorState) -> bool:
+            dx, dy = v.location.x - ego.location.x, v.location.y - ego.location.y
+            return dx * math.cos(yaw) + dy * math.sin(yaw) < 0.0
+
+        def following(v: ActorState) -> bool:
+            diff = abs((v.transform.rotation.yaw - ego.transform.rotation.yaw + 180.0) % 360.0 - 180.0)
+            return behind(v) and diff < cfg.leading_max_yaw_difference
+
+        # cars behind that go the ego's way are the merge's and the lane-change gate's business (their gaps) and
+        # would otherwise hold a slow ego at the end of a ramp for ever; the long check is for crossing paths
+        late = set(colliding(go, [t for t in tracks if t.actor_id not in leading
+                                  and not following(by_id[t.actor_id])]))  # fmt: skip
+        threats = late | (hits & {v.id for v in flow})
+        if not threats:
+            return set(), set()
+        real = {t.actor_id: with_extents(t, by_id[t.actor_id]) for t in tracks if t.actor_id in threats}
+        stop = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed,
+                                               frames, braking=True), ego)  # fmt: skip
+        struck = set(colliding(stop, list(real.values())))
+        if not struck:
+            return late, set()
+        blocked = set(colliding(with_extents(go, ego, cfg.commit_margin), [real[i] for i in struck]))
+        drive_on = (struck - blocked) | {i for i in struck if behind(by_id[i])}
+        if drive_on:
+            log.debug("braking would leave the ego in the path of %s: it drives on", sorted(drive_on))
+        return late - drive_on, drive_on
+
     # -- dataset helpers ---------------------------------------------------------------------------------------
     def _close_lights(self, snapshot: Snapshot, position: np.ndarray, affecting: int | None) -> tuple[CloseSignal, ...]:
         out = []
@@ -362,6 +455,15 @@ class Expert:
                                        sign_id == affecting and not self.stop_signs.cleared))
         return tuple(out)
 
+
+#: Scenarios whose flows (LB2.0's ActorFlow, BicycleFlow) never brake for the ego; their hints switch the expert's
+#: flow checks on (``_flow_cars``, ``_flow_speed_along_route``, crossing bicycles braked for like cars).
+FLOW_TYPES = frozenset({
+    "SignalizedJunctionLeftTurn", "NonSignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow",
+    "NonSignalizedJunctionLeftTurnEnterFlow", "SignalizedJunctionRightTurn", "NonSignalizedJunctionRightTurn",
+    "EnterActorFlow", "InterurbanActorFlow", "InterurbanAdvancedActorFlow", "MergerIntoSlowTraffic",
+    "MergerIntoSlowTrafficV2", "HighwayExit", "CrossingBicycleFlow",
+})  # fmt: skip
 
 #: ``role_name`` of the actors a scenario spawns (``scenarios.framework.SCENARIO_ROLE``; the expert is privileged).
 _SCENARIO_ROLE = "scenario"

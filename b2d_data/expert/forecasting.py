@@ -114,11 +114,12 @@ def forecast_walkers(config: ExpertConfig, walkers: list[ActorState], frames: in
 
 def forecast_ego_boxes(config: ExpertConfig, ego: ActorState, route: DenseRoute, lateral: LateralPIDController,
                        longitudinal: LinearRegressionController | PIDLongitudinalController, target_speed: float,
-                       frames: int) -> BoxTrack:
+                       frames: int, braking: bool = False) -> BoxTrack:
     """The ego driving the route at the *unreduced* target speed, assuming it does not brake (§1.6).
 
     Steering re-runs the lateral PID on the route at each forecast pose; the route index, the PID history and the
-    longitudinal state are restored afterwards.
+    longitudinal state are restored afterwards. ``braking`` forecasts a full brake from now on instead (where the
+    ego would come to a stand).
     """
     route.save()
     lateral.save_state()
@@ -128,14 +129,14 @@ def forecast_ego_boxes(config: ExpertConfig, ego: ActorState, route: DenseRoute,
         z = ego.location.z
         yaw = math.radians(ego.transform.rotation.yaw)
         speed = ego.speed()
-        throttle = longitudinal.get_throttle_extrapolation(target_speed, speed)
+        throttle = 0.0 if braking else longitudinal.get_throttle_extrapolation(target_speed, speed)
         steer = lateral.step(route.points[route.index :], speed, np.array([x, y]), yaw)
         centres, yaws = np.empty((frames, 3)), np.empty(frames)
         for i in range(frames):
-            x, y, yaw, speed = forecast_ego(config, x, y, yaw, speed, steer, throttle, False)
+            x, y, yaw, speed = forecast_ego(config, x, y, yaw, speed, steer, throttle, braking)
             route.update_index(np.array([x, y]))
             steer = lateral.step(route.points[route.index :], speed, np.array([x, y]), yaw)
-            throttle = longitudinal.get_throttle_extrapolation(target_speed, speed)
+            throttle = 0.0 if braking else longitudinal.get_throttle_extrapolation(target_speed, speed)
             centres[i] = (x, y, z)
             yaws[i] = yaw
     finally:
@@ -148,6 +149,13 @@ def forecast_ego_boxes(config: ExpertConfig, ego: ActorState, route: DenseRoute,
     fx, fy = (config.ego_extent_x_factor, config.ego_extent_y_factor) if fast else (1.0, 1.0)
     extents = np.tile(np.array([e.x * fx, e.y * fy, e.z]), (frames, 1))
     return BoxTrack(ego.id, centres + _box_offset(ego, yaws), yaws, extents)
+
+
+def with_extents(track: BoxTrack, actor: ActorState, margin: float = 0.0) -> BoxTrack:
+    """``track`` with the actor's real box (plus ``margin`` m on every horizontal side) at every frame."""
+    e = actor.bounding_box.extent
+    extents = np.tile(np.array([e.x + margin, e.y + margin, e.z]), (track.centres.shape[0], 1))
+    return BoxTrack(track.actor_id, track.centres, track.yaws, extents)
 
 
 def colliding(ego: BoxTrack, others: list[BoxTrack]) -> list[int]:

@@ -12,6 +12,10 @@ from scipy.integrate import RK45
 
 from b2d_data.expert.config import ExpertConfig
 
+#: Below this desired speed (m/s) the target is 0: the (v / v_des)^δ term makes the integration so stiff that RK45
+#: crawls through millions of steps and overflows (a merge whose speed cap fell to 0.015 m/s).
+MIN_DESIRED_SPEED = 0.1
+
 
 def idm_acceleration(ego_speed: float, desired_speed: float, gap: float, lead_speed: float, s0: float, T: float,
                      a: float, b: float, delta: float) -> float:
@@ -27,7 +31,7 @@ def idm_target_speed(config: ExpertConfig, desired_speed: float, ego_speed: floa
     ``distance`` is measured from the ego to the leader's reference point, ``lead_length`` is the part of it
     that is not free road (the gap is ``max(0.1, distance + t·lead_speed − x_ego − lead_length)``).
     """
-    if desired_speed <= 0.0:
+    if desired_speed < MIN_DESIRED_SPEED:
         return 0.0
     if math.isinf(distance):
         distance = 1e9  # no leader: free-road acceleration

@@ -11,7 +11,8 @@ in the lane the ego is in (its points after the change are moved back onto that 
 cosine ramp. While the new lane has no gap beside the ego (:func:`gap_is_free`), the ramp is pushed ahead every
 frame, so the ego drives on in its own lane and the traffic around it keeps moving; a slower car in the new lane
 ahead is let go ahead (the ego drives a little slower than it). At the first gap the ramp is fixed just ahead of the
-ego and the change is committed: cars behind in the new lane are left to brake for the ego (background cars do), and
+ego and the change is committed: cars behind in the new lane are left to brake for the ego (background cars do; a
+scenario's flow cars do not, and expert.py's ``_flow_cars`` watches them), and
 cars ahead are followed by IDM like any leader. The hold never reaches past the route's next lane change into a
 third lane, nor to the last ``end_margin`` metres of the route.
 """

@@ -6,8 +6,9 @@ publishes its hint (with the flow's sink), this module orders every vehicle in t
 that sink along the lane (all branches that lead there: the highway lane and, Town06-style, the flow's own entry)
 and compares it with the ego's distance to the sink along its route. The ego then follows the nearest such
 vehicle that is ahead of it, or beside it, or too little behind it to merge in front of it: it slows down, lets
-that car pass and slots in behind it. Cars far enough behind are left to brake for the merged ego (the flow's
-cars brake for a vehicle in their lane).
+that car pass and slots in behind it. Cars far enough behind are not waited for here: the flow's cars never brake
+for the ego (LB2.0's ActorFlow ignores vehicles until its first collision), and the expert's long forecast of
+such cars (expert.py, ``_flow_cars``) keeps it out of their way and drives it at their speed once it is in.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ IN_LANE_DISTANCE, IN_LANE_YAW = 1.8, 45.0
 EGO_MERGED_DISTANCE = 1.0
 #: Free road (m) wanted behind the ego to merge in front of a flow car, on top of the half lengths of both cars.
 REAR_MARGIN = 4.0
-#: A car beside or behind the ego slower than this (m/s) waits for it and is not waited for.
+#: A car beside or behind the ego slower than this (m/s) stands and is not waited for.
 WAITING_SPEED = 2.0
 #: Share of a flow car's speed the ego slows to while that car is beside it, so that the car draws ahead.
 BESIDE_SPEED_SHARE = 0.5
@@ -149,7 +150,7 @@ class SlowFlowMerge:
             if ahead <= -needed_behind or ahead > cfg.leading_detection_length:
                 continue
             if ahead <= 0.0 and v.speed() < WAITING_SPEED:
-                continue  # it waits for the ego (flow cars brake for a vehicle in their path): go first
+                continue  # it stands (a flow only stops after a collision): go first
             if best is None or ahead < best[0]:
                 best = (ahead, v)
         if best is None:

@@ -1,8 +1,8 @@
 """Controllers for scenario actors (expert-and-scenarios.md §2.1 "Actor controllers", §5).
 
 - :class:`ConstantVelocityAgent`: follows a path at a forced constant speed (CARLA's ConstantVelocityAgent:
-  "infinite acceleration"); optionally brakes for vehicles in its path (the emergency vehicle), else ignores
-  everything (actor flows, the red-light runner).
+  "infinite acceleration"); optionally brakes for vehicles in its path (the emergency vehicle, actor flows after
+  their first collision), else ignores everything (actor flows until then, the red-light runner).
 - :class:`LaneFollowingAgent`: follows its lane (with a lateral offset) at a target speed with bounded
   acceleration, braking for vehicles ahead in its path (BasicAgent: bicycles, opposite flows, the car beside
   a parked ego).

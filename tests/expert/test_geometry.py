@@ -429,3 +429,25 @@ def test_two_way_obstacle_waits_then_commits(make_route, make_vehicle):
     route.index = 640
     manager.step(_snapshot([ego, parked]), ego, route, [hint], 8.0)
     assert record.done
+
+
+def test_braking_forecast_stops_short_and_real_extents(make_route, make_vehicle):
+    # the flow checks (expert.py ``_flow_cars``): where a full brake from now on leaves the ego, and real boxes
+    from b2d_data.expert.forecasting import forecast_ego_boxes, with_extents
+    from b2d_data.expert.lateral_controller import LateralPIDController
+    from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
+
+    cfg = ExpertConfig.for_builtin()
+    route = make_route(100.0, cfg)
+    ego = make_vehicle(1, 0.0, 0.0, speed=8.0, half=(2.45, 1.06, 0.75))
+    lateral, longitudinal = LateralPIDController(cfg), make_longitudinal_controller(cfg)
+    stop = forecast_ego_boxes(cfg, ego, route, lateral, longitudinal, 8.0, 80, braking=True)
+    go = forecast_ego_boxes(cfg, ego, route, lateral, longitudinal, 8.0, 80)
+    # PDM-Lite's full-brake polynomial of the Lincoln: 28.8 → 27.0 km/h in the first 0.05 s (10 m/s²), harder
+    # below, so the ego stands within 8² / (2 · 10) = 3.2 m (and surely beyond 8² / (2 · 20) = 1.6 m)
+    assert 1.6 < stop.centres[-1, 0] < 3.2
+    assert stop.centres[-1, 0] == pytest.approx(stop.centres[-20, 0], abs=1e-6)
+    assert go.centres[-1, 0] == pytest.approx(8.0 * 4.0, abs=1.0)  # holding 8 m/s for 4 s
+    assert route.index == 0  # the route cursor is restored
+    real = with_extents(go, ego, margin=0.1)
+    assert np.allclose(real.extents, [2.55, 1.16, 0.75]) and real.centres is go.centres

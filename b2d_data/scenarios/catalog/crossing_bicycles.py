@@ -2,8 +2,10 @@
 ego turns across it.
 
 The bicycles (CARLA's bicycle blueprints, each with its rider) ride from ``start_actor_flow`` on the bike lane
-through the junction to 40 m past its exit at ``flow_speed`` m/s, ignoring lights, the path pre-populated, a new
-one once the last has ridden a gap drawn from ``source_dist_interval``. On a signalised junction the ego's light is
+through the junction to 40 m past its exit at ``flow_speed`` m/s, ignoring lights and every vehicle (the ego too,
+collision or not: LB2.0's ``BicycleFlow`` drives them with BasicAgents set to ``ignore_vehicles`` and has no
+collision sensor), the path pre-populated, a new one once the last has ridden a gap drawn from
+``source_dist_interval``. On a signalised junction the ego's light is
 red for 5 s, then green (the others red). The background clears the junction and stops its entries; unlike LB2.0
 the route sources are off while the bicycles ride. The scenario ends when the ego leaves the junction, or after
 240 s.
@@ -22,7 +24,7 @@ from b2d_data.scenarios.catalog.road_geometry import lane_walk
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -107,7 +109,7 @@ class CrossingBicycleFlow(JunctionScenario):
         bikes = blueprints.filter_ids("vehicle.*", base_type="bicycle")
         self.flow = ActorFlow(
             self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True,
-            blueprint_ids=bikes,
+            blueprint_ids=bikes, yield_after_collision=False,
         )  # fmt: skip
         self.flow.start()
         lights = self.junction_lights(snapshot)
@@ -117,6 +119,10 @@ class CrossingBicycleFlow(JunctionScenario):
                 (light_states(lights, []), self.green_light_delay), (light_states(lights, ego_lights), None),
             ])  # fmt: skip
             self.lights.update(snapshot)
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Ride the bicycles; SUCCESS once the ego left the junction."""

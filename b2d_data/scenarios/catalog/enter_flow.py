@@ -18,7 +18,7 @@ from b2d_data.scenarios.catalog.flows import ActorFlow
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import lane_walk, same_direction_lanes
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -93,6 +93,10 @@ class EnterActorFlow(JunctionScenario):
             flow = ActorFlow(self.ctx.sim, self.ctx.rng, path, self.flow_speed, self.interval, initial_actors=True)
             flow.start()
             self.flows.append(flow)
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Drive the flows; SUCCESS once the ego is within 2 m of a sink."""

@@ -1,9 +1,12 @@
 """Actor flows: a stream of vehicles from a source lane point to a sink (scenario_runner's ActorFlow).
 
-With ``constant_velocity`` the vehicles drive at a forced constant speed ignoring lights and signs, braking only for
-a vehicle in their own path (junction turn scenarios); otherwise they are lane-following agents at a target speed
-that brake for vehicles ahead (the opposite traffic of the two-way obstacle scenarios). A new vehicle appears at
-the source once the previous one has driven a gap drawn uniformly from the interval; vehicles are removed within
+With ``constant_velocity`` the vehicles drive at a forced constant speed ignoring lights, signs and other vehicles
+(the ego too) until the flow's first collision, as LB2.0's ``ActorFlow`` (Traffic Manager with
+``ignore_vehicles_percentage(actor, 100)`` and ``enable_constant_velocity``, a collision sensor on every car). From
+the first collision of any of its cars on, the flow's cars (those alive and those spawned later) brake for vehicles
+in their path; see :meth:`ActorFlow.update`. Otherwise they are lane-following agents at a target speed that brake
+for vehicles ahead (the opposite traffic of the two-way obstacle scenarios). A new vehicle appears at the source
+once the previous one has driven a gap drawn uniformly from the interval; vehicles are removed within
 ``sink_distance`` of the sink.
 """
 
@@ -59,6 +62,9 @@ class ActorFlow:
     ``lateral_margin`` widens their swept path when they look for vehicles to stop for; ``blueprint_ids`` replaces
     the background cars the vehicles are drawn from (e.g. bicycles for a BicycleFlow). ``hero_clearance`` (m; None,
     the default and LB2.0's rule, never waits) holds the next vehicle back while the ego is that close to the source.
+    ``yield_after_collision`` (constant-velocity flows only) makes the cars brake for vehicles once any of them has
+    collided (LB2.0's ``ActorFlow``); False keeps them ignoring vehicles for good (LB2.0's ``BicycleFlow``, whose
+    bicycles are BasicAgents with ``ignore_vehicles`` and no collision sensor).
     """
 
     def __init__(
@@ -75,6 +81,7 @@ class ActorFlow:
         lateral_margin: float = 0.3,
         blueprint_ids: Sequence[str] | None = None,
         hero_clearance: float | None = None,
+        yield_after_collision: bool = True,
     ) -> None:
         if len(path) < 2:
             raise ScenarioSetupError("an actor flow needs a path of at least two waypoints")
@@ -89,6 +96,9 @@ class ActorFlow:
         self.lateral_offset = float(lateral_offset)
         self.lateral_margin = float(lateral_margin)
         self.hero_clearance = hero_clearance
+        self.yield_after_collision = yield_after_collision
+        #: Whether the cars brake for vehicles: from the flow's first collision on (constant-velocity flows).
+        self.yielding = False
         self.vehicles: list[_FlowVehicle] = []
         self._cars = list(blueprint_ids) if blueprint_ids is not None else blueprints.background_car_ids()
         if not self._cars:
@@ -116,16 +126,17 @@ class ActorFlow:
             return None
         rest = self.waypoints[index:]
         if self.constant_velocity:
-            # Unlike LB2.0's flows (constant velocity through anything until the first crash) these brake for a
-            # vehicle in their lane, as scenario_runner's earlier BasicAgent flows did: a merged ego is not rear-ended.
-            # Only a box that reaches into the swept path counts (no margin): a car waiting to turn across the flow
-            # with its nose 0.3 m short of that path would otherwise stop the flow, and both would wait for ever.
+            # Before the first collision the car ignores every vehicle (LB2.0: the TM at ignore_vehicles 100 plus a
+            # forced constant velocity), so an ego that pulls in front of it is struck. The detection settings below
+            # only act once ``yielding`` (see update). Only a box that reaches into the swept path counts then (no
+            # margin): a car waiting to turn across the flow with its nose 0.3 m short of that path would otherwise
+            # stop the flow, and both would wait for ever.
             agent: ConstantVelocityAgent | LaneFollowingAgent = ConstantVelocityAgent(
                 self.sim,
                 actor_id,
                 PathTrack.from_waypoints(rest),
                 self.speed,
-                detect_vehicles=True,
+                detect_vehicles=self.yielding,
                 base_threshold=5.0,
                 speed_ratio=0.5,
                 max_brake=1.0,
@@ -159,6 +170,11 @@ class ActorFlow:
     def update(self, snapshot: Snapshot) -> None:
         """Spawn at the source when the gap is free, drive every vehicle, remove those at the sink."""
         crashed = {c.actor_id for c in snapshot.collisions}
+        if not self.yielding and self.constant_velocity and self.yield_after_collision:
+            ours = {v.actor_id for v in self.vehicles}
+            hit = next((c for c in snapshot.collisions if c.actor_id in ours), None)
+            if hit is not None:
+                self._start_yielding(hit.actor_id, hit.other_id)
         for veh in list(self.vehicles):
             actor = snapshot.actors.get(veh.actor_id)
             if actor is None:
@@ -166,8 +182,8 @@ class ActorFlow:
                     self.vehicles.remove(veh)
                 continue
             veh.seen = True
-            if veh.actor_id in crashed and not veh.crashed:
-                veh.crashed = True  # LB2.0 flows keep their forced speed only until their first collision
+            if not self.constant_velocity and veh.actor_id in crashed and not veh.crashed:
+                veh.crashed = True  # a lane-following flow car stops where it collided, for good
                 log.debug("flow vehicle %d collided, it stops", veh.actor_id)
             if veh.crashed:
                 self.sim.apply_control(veh.actor_id, VehicleControl(brake=1.0))
@@ -189,6 +205,22 @@ class ActorFlow:
         if self._spawn_at(0) is not None:
             self._last_spawned = self.vehicles[-1].actor_id
             self._gap = self._draw_gap()
+
+    def _start_yielding(self, actor_id: int, other_id: int) -> None:
+        """The flow's first collision: from now on every car of the flow brakes for vehicles in its path.
+
+        LB2.0 then calls ``disable_constant_velocity`` and ``ignore_vehicles_percentage(actor, 0)`` on every live
+        car, and spawns later cars without either, so the Traffic Manager drives them at ``flow_speed`` and brakes
+        for vehicles. Our kinematic stand-in for the TM is the same path-following agent with its vehicle detection
+        on: it still cruises at ``flow_speed`` but slows down for a vehicle in its path (bounded braking, and speeds
+        up again at ``resume_accel`` once the path is clear). The car that collided is no exception: it stays
+        against what it hit (the simulator does not let it drive through) until its path is clear.
+        """
+        self.yielding = True
+        for veh in self.vehicles:
+            if isinstance(veh.agent, ConstantVelocityAgent):
+                veh.agent.detect_vehicles = True
+        log.debug("flow vehicle %d collided with actor %d: the flow now brakes for vehicles", actor_id, other_id)
 
     def _hero_at_source(self, snapshot: Snapshot) -> bool:
         """Whether ``hero_clearance`` holds the next vehicle back: the ego is within it of the source (2D)."""

@@ -18,7 +18,7 @@ from b2d_data.scenarios.catalog.interurban import location_parameter
 from b2d_data.scenarios.catalog.road_geometry import lane_walk
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -140,6 +140,10 @@ class HighwayExit(Scenario):
         beside = min(self.path, key=lambda wp: wp.transform.location.distance_2d(ego.location))
         if beside.road_id == here.road_id and not beside.is_junction:
             self.ctx.sim.background.remove_road_lane(beside)
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Drive the flow and keep its lane free of background traffic; SUCCESS once the ego has left the exit

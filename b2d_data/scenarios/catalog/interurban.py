@@ -23,7 +23,7 @@ from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import is_driving, same_direction_lanes
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -89,6 +89,10 @@ class InterurbanActorFlow(JunctionScenario):
         bg.change_opposite_behavior(active=False)
         self.flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval)
         self.flow.start()
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Drive the flow; SUCCESS once the ego has left the junction."""
@@ -156,6 +160,10 @@ class InterurbanAdvancedActorFlow(JunctionScenario):
             flow = ActorFlow(self.ctx.sim, self.ctx.rng, path, self.flow_speed, self.interval)
             flow.start()
             self.flows.append(flow)
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Drive the flows; SUCCESS once the ego has passed flow 2's sink."""

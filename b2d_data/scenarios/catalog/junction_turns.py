@@ -32,7 +32,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
-from b2d_data.sim.api import Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -127,6 +127,10 @@ class JunctionFlowTurn(JunctionScenario):
         self.lights = self.light_phases(snapshot)
         if self.lights is not None:
             self.lights.update(snapshot)
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Drive the flow; SUCCESS 10 m after the ego left the junction."""

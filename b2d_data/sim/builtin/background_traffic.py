@@ -305,6 +305,12 @@ class BackgroundTrafficManager:
         if extend_road_exit > 0.0:
             exit_s = float(self._route_s[min(junction.exit_index, len(self._route_s) - 1)])
             self._front_clear_until = max(self._front_clear_until, exit_s + float(extend_road_exit))
+        if clear_ego_entry:
+            # the cleared entry stays clear: a car born there afterwards would take the scenario's turn in front of
+            # the ego (route InterurbanActorFlow on Town103: one turned across the flow, was hit by a flow car that
+            # does not yield, and both then stood in the ego's way until TickRuntime)
+            entry_s = float(self._route_s[min(junction.entry_index, len(self._route_s) - 1)])
+            self._front_clear_until = max(self._front_clear_until, entry_s)
         self._apply_junction_clearing(self._world.snapshot(), junction)
 
     def switch_route_sources(self, enabled: bool) -> None:

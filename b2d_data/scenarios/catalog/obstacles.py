@@ -15,6 +15,7 @@ Each type combines an obstacle site (what stands on the lane: :class:`ParkedCarS
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import ClassVar
 
 from b2d_data.format.transform import Transform
@@ -206,15 +207,19 @@ class OppositeFlowObstacle(RoadObstacle):
         opposite = opposite_driving_neighbour(self.obstacle_waypoint)
         if opposite is None:
             return None
+        # the opposite lane drives against the ego: its source lies ahead of the obstacle (its "previous")
+        return self._flow_along(opposite, lambda wp, d, forward: move_along(wp, d, forward=forward) or wp)
+
+    def _flow_along(self, lane: Waypoint, walk: Callable[[Waypoint, float, bool], Waypoint]) -> ActorFlow | None:
+        """LB2.0's OppositeActorFlow on ``lane``: source and sink ``1.5 × limit [km/h] + 30`` m back and on (by
+        ``walk``), cars at the limit at the obstacle; None (logged) when no path joins them."""
         limit = self.ctx.map.speed_limit(self.obstacle_waypoint)
         reach = 1.5 * limit + 30.0
-        # the opposite lane drives against the ego: its source lies ahead of the obstacle (its "previous")
-        source = move_along(opposite, reach, forward=False) or opposite
-        sink = move_along(opposite, reach, forward=True) or opposite
+        source, sink = walk(lane, reach, False), walk(lane, reach, True)
         try:
             path = flow_path(source, sink, 2.0 * reach + 50.0)
         except ScenarioSetupError as exc:
-            log.warning("%s: no opposite flow (%s)", self.name, exc)
+            log.warning("%s: no flow (%s)", self.name, exc)
             return None
         return ActorFlow(self.ctx.sim, self.ctx.rng, path, limit / 3.6, self.frequency, constant_velocity=False)
 

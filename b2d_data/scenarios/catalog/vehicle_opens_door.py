@@ -20,7 +20,7 @@ from typing import ClassVar
 
 from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_car_with_doors
-from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
+from b2d_data.scenarios.catalog.flows import ActorFlow
 from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
 from b2d_data.scenarios.catalog.road_geometry import move_before_junction, neighbour, offset_transform
 from b2d_data.scenarios.controllers import park
@@ -95,17 +95,7 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         (``front_wp``, the one the car was placed from). For ``direction=right`` that is exactly LB2.0's
         ``parked_wp.get_left_lane()``; placement and bench2drive220 use no other direction.
         """
-        anchor = self.obstacle_waypoint
-        limit = self.ctx.map.speed_limit(anchor)
-        reach = 1.5 * limit + 30.0
-        source = move_before_junction(anchor, reach, forward=False)
-        sink = move_before_junction(anchor, reach, forward=True)
-        try:
-            path = flow_path(source, sink, 2.0 * reach + 50.0)
-        except ScenarioSetupError as exc:
-            log.warning("%s: no flow (%s)", self.name, exc)
-            return None
-        return ActorFlow(self.ctx.sim, self.ctx.rng, path, limit / 3.6, self.frequency, constant_velocity=False)
+        return self._flow_along(self.obstacle_waypoint, move_before_junction)
 
     def open_door(self) -> None:
         """Open the traffic-side front door and stop the background behind the ego."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.interurban import flow_lane_path, location_parameter
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import (
@@ -30,7 +30,6 @@ from b2d_data.scenarios.catalog.road_geometry import (
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
 from b2d_data.scenarios.framework import (
     SCENARIO_ROLE,
-    Scenario,
     ScenarioContext,
     ScenarioSetupError,
     ScenarioStatus,
@@ -184,7 +183,7 @@ class HighwayCutIn(JunctionScenario):
         log.debug("%s: cut-in at %.1f m/s", self.name, self.cut_in_speed)
 
 
-class _SlowTrafficMerge(Scenario):
+class _SlowTrafficMerge(FlowScenario):
     """Common part of the two MergerIntoSlowTraffic types: a slow, pre-populated flow from ``start_actor_flow`` to
     ``end_actor_flow`` on the lane the ego merges into; SUCCESS once the ego is within 2 m of its sink.
 
@@ -193,21 +192,19 @@ class _SlowTrafficMerge(Scenario):
 
     #: V2 also removes the lanes after the junction from background traffic.
     remove_exit_lanes: ClassVar[bool] = False
+    route_sources_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 10.0)
-        self.interval = ctx.interval("source_dist_interval", (20.0, 50.0))
         self.path: list[Waypoint] = flow_lane_path(ctx)
         sink = self.path[-1].transform.location
         closest = ctx.route.closest_index(sink)
         # a route cut short of the sink (a short clip) runs the flow until the route ends
         reaches = ctx.route.waypoints[closest].transform.location.distance_2d(sink) <= 3.0
         self.end_index: int | None = closest if reaches else None
-        self.flow: ActorFlow | None = None
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Clear the merge junction, remove the flow's lanes from background traffic, start the flow."""
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Clear the merge junction, remove the flow's lanes from background traffic (the route sources stop)."""
         bg = self.ctx.sim.background
         inside = [k for k, wp in enumerate(self.path) if wp.is_junction]
         after = float(len(self.path) - 1 - inside[-1]) if inside else 0.0  # metres of flow past the junction
@@ -216,22 +213,17 @@ class _SlowTrafficMerge(Scenario):
             remove_exits=same_direction_lanes(self.path[-1]) if self.remove_exit_lanes else [], stop_entries=False,
             extend_road_exit=after + 20.0,
         )  # fmt: skip
-        bg.switch_route_sources(False)
-        self.flow = ActorFlow(
-            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True
-        )
-        self.flow.start()
 
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS once the ego is within 2 m of its sink."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """The pre-populated flow."""
+        self.add_flow(self.path, initial_actors=True)
+
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego is within 2 m of the sink along the route (never when the route stops short of it)."""
         if self.end_index is None:
-            return ScenarioStatus.RUNNING
+            return False
         s = self.ctx.route.cumulative_length
-        if float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0:
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
+        return float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0
 
     def hint(self) -> ScenarioHint | None:
         """While the flow runs: the sink the ego merges towards."""
@@ -239,12 +231,6 @@ class _SlowTrafficMerge(Scenario):
             return None
         sink = self.path[-1].transform.location
         return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
-
-    def on_end(self) -> None:
-        """Stop the flow and switch the route sources back on."""
-        if self.flow is not None:
-            self.flow.stop()
-            self.ctx.sim.background.switch_route_sources(True)
 
 
 @register

@@ -24,6 +24,7 @@ from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import (
     is_driving,
     lane_walk,
+    move_along,
     same_direction_driving_neighbour,
     same_direction_lanes,
 )
@@ -190,8 +191,9 @@ class _SlowTrafficMerge(FlowScenario):
     The expert learns the sink from the hint and merges with gap acceptance (:mod:`b2d_data.expert.merging`).
     """
 
-    #: V2 also removes the lanes after the junction from background traffic.
-    remove_exit_lanes: ClassVar[bool] = False
+    #: V2 (LB2.0's MergerIntoSlowTrafficV2) leaves the junction as it is but removes the lanes 10 m after the
+    #: route's junction exit from background traffic.
+    v2: ClassVar[bool] = False
     route_sources_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
@@ -202,16 +204,37 @@ class _SlowTrafficMerge(FlowScenario):
         # a route cut short of the sink (a short clip) runs the flow until the route ends
         reaches = ctx.route.waypoints[closest].transform.location.distance_2d(sink) <= 3.0
         self.end_index: int | None = closest if reaches else None
+        inside = [k for k, wp in enumerate(self.path) if wp.is_junction]
+        #: metres of flow past the junction
+        self.after_junction = float(len(self.path) - 1 - inside[-1]) if inside else 0.0
+        self.exit_lanes: list[Waypoint] = self._exit_lanes() if self.v2 else []
+
+    def _exit_lanes(self) -> list[Waypoint]:
+        """V2: the same-direction lanes 10 m after the route leaves its first junction past the trigger (LB2.0's
+        ``generate_target_waypoint_in_route`` then ``next(10)``); none (logged) when the route meets no junction."""
+        waypoints = self.ctx.route.waypoints
+        entry = next((k for k in range(self.trigger_index, len(waypoints)) if waypoints[k].is_junction), None)
+        leave = None
+        if entry is not None:
+            leave = next((k for k in range(entry, len(waypoints)) if not waypoints[k].is_junction), None)
+        after = move_along(waypoints[leave], 10.0) if leave is not None else None
+        if after is None:
+            log.warning("%s: no route lane 10 m after the merge junction; no exit lanes removed", self.name)
+            return []
+        return same_direction_lanes(after)
 
     def prepare_background(self, snapshot: Snapshot) -> None:
-        """Clear the merge junction, remove the flow's lanes from background traffic (the route sources stop)."""
-        bg = self.ctx.sim.background
-        inside = [k for k, wp in enumerate(self.path) if wp.is_junction]
-        after = float(len(self.path) - 1 - inside[-1]) if inside else 0.0  # metres of flow past the junction
-        bg.handle_junction_scenario(
-            clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.path[0]),
-            remove_exits=same_direction_lanes(self.path[-1]) if self.remove_exit_lanes else [], stop_entries=False,
-            extend_road_exit=after + 20.0,
+        """LB2.0's HandleJunctionScenario at the trigger (the route sources stop too).
+
+        V1 clears the junction and the ego's entry, removes the flow's source lane and keeps the road free for the
+        flow's length past the junction + 20 m. V2 clears the ego's entry only, removes the source lane and the
+        lanes after the exit. LB2.0's V2 keeps the road free (the same length) only once the ego has left the
+        junction, with a second HandleJunctionScenario; ours asks at the trigger: the space only holds back road
+        spawns, and those are off (SwitchRouteSources) until the scenario ends, so it acts from the same moment.
+        """
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=not self.v2, clear_ego_entry=True, remove_entries=[self.path[0]],
+            remove_exits=self.exit_lanes, stop_entries=False, extend_road_exit=self.after_junction + 20.0,
         )  # fmt: skip
 
     def start_flows(self, snapshot: Snapshot) -> None:
@@ -245,4 +268,4 @@ class MergerIntoSlowTrafficV2(_SlowTrafficMerge):
     """Merge from a dedicated entry into a slow single-lane flow, Town06-style (§2.2 #32)."""
 
     xml_type = "MergerIntoSlowTrafficV2"
-    remove_exit_lanes = True
+    v2 = True

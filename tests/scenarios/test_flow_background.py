@@ -164,3 +164,25 @@ def test_merger_into_slow_traffic_v2_leaves_the_junction_and_removes_the_lanes_a
     # route sources are off (SwitchRouteSources(False), :477-481) until the scenario ends.
     assert call["extend_road_exit"] == pytest.approx(_flow_past_junction(scenario.path) + 20.0, abs=1.0)
     assert scenario.route_sources_off
+
+
+def test_the_flow_base_switches_back_on_only_what_a_start_switched_off(town):
+    # actor_flow.py InterurbanAdvancedActorFlow._create_behavior (from :751 in the audit on): HandleJunctionScenario,
+    # SwitchRouteSources(False), ChangeOppositeBehavior(active=False), the flows; after them SwitchRouteSources(True),
+    # ChangeOppositeBehavior(active=True). A scenario that never started (cleaned up after its build) undoes nothing.
+    _, idle = build(town, "InterurbanAdvancedActorFlow")
+    idle.on_end()
+    assert idle.ctx.sim.background.calls == []
+
+    _, scenario = build(town, "InterurbanAdvancedActorFlow")
+    scenario.start(None)  # flows not pre-populated: nothing is spawned before the first update
+    names = [(name, kw.get("arg0", kw.get("active"))) for name, kw in scenario.ctx.sim.background.calls]
+    assert names == [
+        ("handle_junction_scenario", None), ("switch_route_sources", False), ("change_opposite_behavior", False),
+    ]  # fmt: skip
+    assert len(scenario.flows) == 2 and all(flow.active for flow in scenario.flows)
+    scenario.ctx.sim.background.calls.clear()
+    scenario.on_end()
+    names = [(name, kw.get("arg0", kw.get("active"))) for name, kw in scenario.ctx.sim.background.calls]
+    assert names == [("switch_route_sources", True), ("change_opposite_behavior", True)]
+    assert not any(flow.active for flow in scenario.flows)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -19,6 +19,7 @@ import numpy as np
 
 from b2d_data.expert.config import ExpertConfig
 from b2d_data.expert.forecasting import (
+    along_path,
     colliding,
     forecast_ego_boxes,
     forecast_vehicles,
@@ -147,7 +148,8 @@ class Expert:
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
         else:
-            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows)
+            paths = {k: v for h in hints for k, v in h.paths.items()}
+            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows, paths)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
         merging = merge_hint(hints)
         if merging is not None and not obstacle.keep_driving:
@@ -251,7 +253,8 @@ class Expert:
 
     # -- hazards -----------------------------------------------------------------------------------------------
     def _hazards(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,
-                 reduced_by: ReducedBy | None, flows: bool = False) -> _Hazards:
+                 reduced_by: ReducedBy | None, flows: bool = False,
+                 paths: Mapping[int, np.ndarray] | None = None) -> _Hazards:
         """Target speeds for every hazard class and their minimum (§1.6–1.7); ``brake`` when it is 0."""
         cfg = self.config
         ego_loc = _xyz(ego)
@@ -288,8 +291,8 @@ class Expert:
         by_id = {v.id: v for v in checked}
         speed_bicycle = speed_vehicle = speed_walker = initial_speed
         hits = colliding(ego_track, tracks)
-        flow_hits, drive_on = (self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed) if flows
-                               else (set(), set()))  # fmt: skip
+        flow_hits, drive_on = (self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed, paths)
+                               if flows else (set(), set()))  # fmt: skip
         by_id.update({v.id: v for v in nearby})
         hits = sorted((set(hits) | flow_hits) - drive_on,
                       key=lambda i: float(np.linalg.norm(_xyz(by_id[i]) - ego_loc)))  # fmt: skip
@@ -376,7 +379,8 @@ class Expert:
         return best
 
     def _flow_cars(self, ego: ActorState, route: DenseRoute, nearby: list[ActorState], leading: set[int],
-                   hits: set[int], initial_speed: float) -> tuple[set[int], set[int]]:
+                   hits: set[int], initial_speed: float,
+                   paths: Mapping[int, np.ndarray] | None = None) -> tuple[set[int], set[int]]:
         """Cars that never brake for the ego (a scenario's flows): (those to brake for, forecast hits to drive on
         past). A deviation from PDM-Lite, whose 2 s forecast and trailing-car exemption assume that others brake.
 
@@ -387,14 +391,17 @@ class Expert:
         from now on would meet such a car anyway (the ego has already edged into its path, or the car comes from
         behind), braking is no escape: the ego drives on when driving on at the target speed clears that car's
         real box by ``commit_margin``, or when the car comes from behind. Bicycles count too (LB2.0's BicycleFlow
-        ignores vehicles).
+        ignores vehicles). A car whose path the scenario hints is forecast along that path at its speed: one about
+        to turn into the ego's exit is otherwise forecast straight on until it steers, under a second before the
+        conflict (route 28087 on Town04).
         """
         cfg = self.config
         flow = [v for v in nearby if v.role_name == _SCENARIO_ROLE and v.speed() >= cfg.other_vehicle_slow_speed]
         if not flow:
             return set(), set()
         frames = int(cfg.fps * cfg.commit_forecast_length)
-        tracks = forecast_vehicles(cfg, flow, frames, False)
+        tracks = [along_path(cfg, t, by, paths[by.id]) if paths and by.id in paths else t
+                  for t, by in zip(forecast_vehicles(cfg, flow, frames, False), flow)]
         go = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
         by_id = {v.id: v for v in flow}
         yaw = math.radians(ego.transform.rotation.yaw)

@@ -94,6 +94,35 @@ def forecast_vehicles(config: ExpertConfig, vehicles: list[ActorState], frames: 
     return tracks
 
 
+def along_path(config: ExpertConfig, track: BoxTrack, vehicle: ActorState, path: np.ndarray) -> BoxTrack:
+    """``track`` with ``vehicle`` driving ``path`` ((N, 2) x, y ahead of it) at its current speed instead of
+    holding its control (a scenario's flow car: its agent follows that path at constant speed); extents kept.
+
+    A vehicle more than 3 m off the path (pushed aside in a collision) keeps its kinematic forecast.
+    """
+    path = np.asarray(path, dtype=np.float64)[:, :2]
+    if path.shape[0] < 2:
+        return track
+    ab = np.diff(path, axis=0)
+    seg = np.hypot(ab[:, 0], ab[:, 1])
+    if float(seg.sum()) < 1e-6:
+        return track
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    here = np.array([vehicle.location.x, vehicle.location.y])
+    t = np.clip(np.einsum("ij,ij->i", here - path[:-1], ab) / np.maximum(seg * seg, 1e-12), 0.0, 1.0)
+    gap = np.hypot(*(path[:-1] + ab * t[:, None] - here).T)
+    k = int(np.argmin(gap))
+    if gap[k] > 3.0:
+        return track
+    frames = track.centres.shape[0]
+    dist = s[k] + t[k] * seg[k] + vehicle.speed() * config.dt * np.arange(1, frames + 1)
+    x, y = np.interp(dist, s, path[:, 0]), np.interp(dist, s, path[:, 1])
+    index = np.clip(np.searchsorted(s, dist, side="right") - 1, 0, seg.size - 1)
+    yaws = np.arctan2(ab[index, 1], ab[index, 0])
+    centres = np.stack([x, y, np.full(frames, vehicle.location.z)], axis=1) + _box_offset(vehicle, yaws)
+    return BoxTrack(track.actor_id, centres, yaws, track.extents)
+
+
 def forecast_walkers(config: ExpertConfig, walkers: list[ActorState], frames: int) -> list[BoxTrack]:
     """Constant-velocity forecasts along each walker's control direction, speed ≥ 0.5 m/s, boxes ≥ 3 × 3 m."""
     tracks = []

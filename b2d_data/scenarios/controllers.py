@@ -88,6 +88,12 @@ class PathTrack:
         lateral = float((y - proj[k, 1]) * fx - (x - proj[k, 0]) * fy)  # right of the path is positive
         return seg, s, lateral
 
+    def points_from(self, seg: int, length: float) -> np.ndarray:
+        """The path's (x, y) points from segment ``seg``'s start over at least ``length`` metres (to its end)."""
+        seg = min(max(seg, 0), len(self.s) - 2)
+        end = int(np.searchsorted(self.s, self.s[seg] + length, side="left")) + 1
+        return self.points[seg : max(end, seg + 2), :2].copy()
+
     def point_at(self, s: float) -> tuple[float, float, float]:
         """(x, y, yaw in radians) at arc length ``s`` (clamped to the path)."""
         s = min(max(s, 0.0), self.length)
@@ -278,6 +284,10 @@ class ConstantVelocityAgent:
         self._seen = False
         self._command: float | None = None
 
+    def path_ahead(self, length: float) -> np.ndarray:
+        """(x, y) of the path from the actor's segment (at its last projection) over ``length`` metres."""
+        return self.path.points_from(self._seg, length)
+
     def progress(self, snapshot: Snapshot) -> float:
         """Arc length of the actor's projection on the path (0 when it is gone)."""
         actor = snapshot.actors.get(self.actor_id)
@@ -393,6 +403,10 @@ class LaneFollowingAgent:
         self._last: Location | None = None
         self._seen = False
         self._speed_cmd: float | None = None
+
+    def path_ahead(self, length: float) -> np.ndarray:
+        """(x, y) of the path from the actor's segment (at its last projection) over ``length`` metres."""
+        return self.path.points_from(self._seg, length)
 
     def _extend(self, s_now: float) -> None:
         if self._fixed or self.path.length - s_now > 40.0:

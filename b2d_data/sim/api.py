@@ -213,7 +213,9 @@ class ScenarioHint:
 
     ``scenario_type`` is the XML type (``Accident``, ``YieldToEmergencyVehicle`` ...); ``first_actor_id`` /
     ``last_actor_id`` are the obstacle actors the expert plans around (same id when there is one);
-    ``direction`` is the obstacle side (``left`` / ``right``); ``offset`` is InvadingTurn's lateral offset (m).
+    ``direction`` is the obstacle side (``left`` / ``right``); ``offset`` is InvadingTurn's lateral offset (m);
+    ``paths`` maps the id of an actor that drives a fixed path (a flow's car) to its path ahead, (N, 2) world x, y
+    from where it is now (the scenario runner's agents hold the same plan).
     """
 
     scenario_type: str
@@ -222,6 +224,7 @@ class ScenarioHint:
     direction: str = "right"
     offset: float | None = None
     extra: Mapping[str, float | int | str] = field(default_factory=dict)
+    paths: Mapping[int, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

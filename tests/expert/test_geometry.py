@@ -237,6 +237,23 @@ def test_vehicle_forecast_boxes_grow(make_vehicle):
     assert np.allclose(lc.extents[:, 0], 2.4 * 2.0)
 
 
+def test_a_flow_car_is_forecast_along_its_hinted_path(make_vehicle):
+    from b2d_data.expert.forecasting import along_path
+
+    # 10 m/s east from the origin; the path turns south-bound (+y) 10 m ahead: an L of 10 m then 30 m
+    car = make_vehicle(5, 0.0, 0.0, speed=10.0)
+    (straight,) = forecast_vehicles(CFG, [car], 40, near_lane_change=False)
+    track = along_path(CFG, straight, car, np.array([[-5.0, 0.0], [10.0, 0.0], [10.0, 30.0]]))
+    # frame i is (i + 1) × 0.05 s ahead: 0.5 m per frame; frame 9 (5 m) still on the first leg, heading 0
+    assert track.centres[9, :2] == pytest.approx([5.0, 0.0]) and track.yaws[9] == pytest.approx(0.0)
+    # frame 39 (2 s, 20 m): 10 m along the second leg, heading +90° (the kinematic forecast: 20 m straight on)
+    assert track.centres[39, :2] == pytest.approx([10.0, 10.0]) and track.yaws[39] == pytest.approx(np.pi / 2)
+    assert straight.centres[39, :2] == pytest.approx([20.0, 0.0])
+    assert np.array_equal(track.extents, straight.extents)
+    # a car pushed 4 m off its path keeps the kinematic forecast
+    assert along_path(CFG, straight, car, np.array([[-5.0, 4.0], [10.0, 4.0]])) is straight
+
+
 def test_walker_forecast(make_walker):
     (track,) = forecast_walkers(CFG, [make_walker(9, 5.0, -3.0, direction=(0.0, 1.0), speed=0.2)], 40)
     # speed raised to 0.5 m/s; 40 steps of 0.05 s → 1 m

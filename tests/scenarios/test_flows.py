@@ -144,3 +144,23 @@ def test_path_track_of_the_lane_is_straight(lane):
     # the hand-worked contact ticks above read lane metre k as waypoint k
     track = PathTrack.from_waypoints(lane)
     assert track.length == pytest.approx(80.0, abs=0.5)
+
+
+def test_flow_gives_each_car_its_path_ahead(town, lane):
+    """What FlowScenario hints the expert: a car 12 m down the lane (30 ticks × 0.4 m) gets the lane from its
+    segment on, at least 40 m long; the lane's waypoints are 1 m apart, so that is ≥ 41 points starting ≤ 1 m
+    behind the car."""
+    with BuiltinSimulator(town, seed=0) as sim:
+        flow = ActorFlow(sim, np.random.default_rng(0), lane, SPEED, (200.0, 200.0), blueprint_ids=[CAR])
+        snaps = _run(sim, flow, 30)
+        car = flow.vehicles[0].actor_id
+        paths = flow.paths_ahead(40.0)
+        assert set(paths) == {car}
+        here = snaps[-1].actors[car].location
+        path = paths[car]
+        ahead = float(np.hypot(*(path[-1] - path[0])))
+        assert path.shape[1] == 2 and path.shape[0] >= 41 and ahead >= 40.0
+        start = lane[0].transform.location
+        along_car = float(np.hypot(here.x - start.x, here.y - start.y))
+        along_path = float(np.hypot(path[0, 0] - start.x, path[0, 1] - start.y))
+        assert along_car - 1.5 <= along_path <= along_car + 0.01

@@ -59,6 +59,10 @@ class _FlowVehicle:
     seen: bool = False
 
 
+#: How far ahead (m) a flow car's path goes into the scenario's hint: beyond a 4 s forecast at 21 m/s.
+PATH_HINT_LENGTH = 90.0
+
+
 class ActorFlow:
     """A flow of cars along ``path`` (lane waypoints); ``constant_velocity`` selects the controller.
 
@@ -117,6 +121,10 @@ class ActorFlow:
     def actor_ids(self) -> list[int]:
         """Ids of the live flow vehicles."""
         return [v.actor_id for v in self.vehicles]
+
+    def paths_ahead(self, length: float = PATH_HINT_LENGTH) -> dict[int, np.ndarray]:
+        """Each live vehicle's path ahead, (N, 2) x, y over ``length`` metres (the expert's flow forecasts)."""
+        return {v.actor_id: v.agent.path_ahead(length) for v in self.vehicles}
 
     def _draw_gap(self) -> float:
         return float(self.rng.uniform(*self.interval))
@@ -340,8 +348,12 @@ class FlowScenario(Scenario):
         return ScenarioStatus.SUCCESS if self.finished(snapshot) else ScenarioStatus.RUNNING
 
     def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
+        """A hint of the scenario's type (its flow's cars never brake for the ego: the expert's flow checks) with
+        every flow car's path ahead, so that a car about to turn is forecast turning."""
+        paths: dict[int, np.ndarray] = {}
+        for flow in self.flows:
+            paths.update(flow.paths_ahead())
+        return ScenarioHint(self.xml_type, None, None, paths=paths)
 
     def on_end(self) -> None:
         """Remove the flows, undo the background hooks, switch back on what the start switched off."""

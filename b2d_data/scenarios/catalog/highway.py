@@ -253,7 +253,8 @@ class _SlowTrafficMerge(FlowScenario):
         if self.flow is None or not self.flow.active:
             return None
         sink = self.path[-1].transform.location
-        return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
+        return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z},
+                            paths=self.flow.paths_ahead())
 
 
 @register

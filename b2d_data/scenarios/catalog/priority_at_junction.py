@@ -21,7 +21,9 @@ line is on the route's lane before the junction (:func:`~b2d_data.scenarios.cata
 freezing is a one-phase :class:`~b2d_data.scenarios.catalog.junctions.LightSchedule` released when the ego has left
 the junction, which restores the states the lights had at the trigger.
 
-Placement (generated towns): a signalised junction the route drives through, any turn (:data:`LAYOUT_TURNS`).
+Placement (generated towns): a signalised junction the route drives through, any turn (:data:`LAYOUT_TURNS`). On a
+route file, a junction without lights in the OpenDRIVE file gets none generated for this type (LB2.0 cannot find the
+ego's landmark there and skips the scenario; our build raises and the evaluation skips it too).
 """
 
 from __future__ import annotations
@@ -44,7 +46,10 @@ class PriorityAtJunction(JunctionScenario):
     """The ego's light green and the junction's others red from the trigger until the ego has left the junction."""
 
     xml_type = "PriorityAtJunction"
-    signalized = True
+    # No generated lights for it (b2d_data.scenarios.junction_signals): the reference reads the ego's light from the
+    # OpenDRIVE landmarks (get_landmarks_of_type, :74), so at a junction whose file has none LB2.0 fails to build the
+    # scenario and skips it, as our build does (require_lights). The placement asks for a signalised junction itself.
+    signalized = False
     # green_traffic_light.py has no ScenarioTimeout behaviour and no criteria at all
     scenario_timeout = None
     timeout_test = False

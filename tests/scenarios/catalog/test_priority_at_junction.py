@@ -9,6 +9,8 @@ criteria (:93), no ScenarioTimeout, no background request.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -18,7 +20,8 @@ from b2d_data.maps import load_opendrive
 from b2d_data.maps.towngen import write_town
 from b2d_data.scenarios.catalog.junctions import lights_of_lane
 from b2d_data.scenarios.catalog.priority_at_junction import PriorityAtJunction
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioManager, ScenarioStatus
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioManager, ScenarioSetupError, ScenarioStatus
+from b2d_data.scenarios.junction_signals import junctions_needing_lights
 from b2d_data.scenarios.placement import find_candidates, make_routes
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.triggers import trigger_route_index
@@ -98,3 +101,21 @@ def test_placement_finds_signalised_junctions_the_route_drives_through(town):
         junctions = [wp.junction_id for wp in dense.waypoints[index:] if wp.is_junction]
         # the route goes through a signalised junction after its trigger and comes out of it
         assert junctions and junctions[0] in lit and not dense.waypoints[-1].is_junction
+
+
+def test_a_junction_without_lights_gets_none_generated_and_the_scenario_is_not_built(town):
+    # green_traffic_light.py :70-75: no light in the junction raises ValueError, and the ego's light is read from the
+    # OpenDRIVE landmarks ([0] of an empty list raises too), so LB2.0 never runs it at a junction without lights in
+    # the file; generating lights there (as for the signalised types) would make it run
+    base = make_routes(town, "VanillaNonSignalizedTurn", 1, seed=0, params="bench2drive220")[0]
+    (config,) = base.scenarios
+    route = replace(base, scenarios=(replace(config, name=f"{TYPE}_1", type=TYPE),))
+    dense = DenseRoute.from_route(town, route)
+    assert junctions_needing_lights(town, route, dense) == []
+    with BuiltinSimulator(town, seed=0) as sim:
+        ego = sim.spawn_actor(ActorSpec(EGO_TYPE_ID, role_name="hero"), _at(dense.waypoints[0]))
+        scenario = PriorityAtJunction(
+            ScenarioContext(sim, town, dense, route.scenarios[0], np.random.default_rng(1), ego)
+        )
+        with pytest.raises(ScenarioSetupError, match="no traffic lights"):
+            scenario.build()

@@ -81,3 +81,17 @@ def test_abilities_leave_the_new_types_out_without_failing():
         (1, 1, 1), (0, 0, 0), (0, 0, 0), (0, 0, 0), (0, 0, 0),
     ]  # fmt: skip
     assert result.crashed == [("EnterActorFlowV2", "4")]
+
+
+def test_enter_actor_flow_v2_ranges_are_the_training_files_in_both_sets():
+    from b2d_data.scenarios.param_ranges import BENCH2DRIVE220, TRAINING
+
+    # routes_training.xml's 9 EnterActorFlowV2 scenarios (3 routes, each in 3 copies): flow_speed 18 / 22 / 15,
+    # source_dist_interval 20-40 / 15-40 / 15-35 → flow_speed 15..22, from 15..20, to 35..40; PriorityAtJunction has
+    # no parameter. Bench2Drive has no such route, so bench2drive220 uses the same ranges.
+    for ranges in (TRAINING, BENCH2DRIVE220):
+        spec = ranges.ranges("EnterActorFlowV2")
+        assert (spec["flow_speed"].lo, spec["flow_speed"].hi) == (15, 22)
+        interval = spec["source_dist_interval"]
+        assert (interval.lo.lo, interval.lo.hi, interval.hi.lo, interval.hi.hi) == (15, 20, 35, 40)
+        assert dict(ranges.ranges("PriorityAtJunction")) == {}

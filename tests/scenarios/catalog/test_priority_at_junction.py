@@ -20,6 +20,7 @@ from b2d_data.maps import load_opendrive
 from b2d_data.maps.towngen import write_town
 from b2d_data.scenarios.catalog.junctions import lights_of_lane
 from b2d_data.scenarios.catalog.priority_at_junction import PriorityAtJunction
+from b2d_data.scenarios.catalog.road_geometry import junction_lights
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioManager, ScenarioSetupError, ScenarioStatus
 from b2d_data.scenarios.junction_signals import junctions_needing_lights
 from b2d_data.scenarios.placement import find_candidates, make_routes
@@ -119,3 +120,35 @@ def test_a_junction_without_lights_gets_none_generated_and_the_scenario_is_not_b
         )
         with pytest.raises(ScenarioSetupError, match="no traffic lights"):
             scenario.build()
+
+
+def test_expert_drives_through_on_its_held_green(town):
+    from b2d_data import expert
+    from b2d_data.scenarios.route_runner import RouteRunner
+
+    route = make_routes(town, TYPE, 1, seed=5)[0]
+    dense = DenseRoute.from_route(town, route)
+    index = trigger_route_index(dense, route.scenarios[0].trigger_point)
+    entry = dense.waypoints[next(k for k in range(index, len(dense.waypoints)) if dense.waypoints[k].is_junction) - 1]
+    junction_id = next(wp.junction_id for wp in dense.waypoints[index:] if wp.is_junction)
+    seen: list[dict[int, TrafficLightState]] = []
+    ego_light: set[int] = set()
+
+    def on_frame(snapshot, info) -> None:
+        wp = town.get_waypoint(snapshot.actors[info.ego_id].location)
+        if wp.is_junction and wp.junction_id == junction_id:
+            lights = junction_lights(snapshot.traffic_lights, town, town.junctions[junction_id])
+            ego_light.update(info.id for info in lights_of_lane(lights, entry))
+            seen.append({info.id: info.state for info in lights})
+
+    with BuiltinSimulator(town, seed=0) as sim:
+        result = RouteRunner(sim, route, expert.Expert(town, list(dense), seed=0), seed=0, dense_route=dense,
+                             on_frame=on_frame, record_every=1, max_ticks=3000).run()  # fmt: skip
+    infractions = {k: v for k, v in result.record.infractions.items() if v and k != "min_speed_infractions"}
+    assert result.success, infractions
+    # every tick the ego spent in the junction, its light was green and the junction's others red
+    assert (
+        seen
+        and len(ego_light) == 1
+        and all(states[i] == (GREEN if i in ego_light else RED) for states in seen for i in states)
+    )

@@ -81,6 +81,10 @@ def test_abilities_leave_the_new_types_out_without_failing():
         (1, 1, 1), (0, 0, 0), (0, 0, 0), (0, 0, 0), (0, 0, 0),
     ]  # fmt: skip
     assert result.crashed == [("EnterActorFlowV2", "4")]
+    assert result.mean == 100.0  # Overtaking alone: the new types add no 0 % ability to the mean
+    # a run of the new types only has no ability at all (no division by zero)
+    only_new = compute_abilities(records[1:], routes[1:])
+    assert only_new.mean is None and all(only_new.scores[a].value is None for a in ABILITIES)
 
 
 def test_enter_actor_flow_v2_ranges_are_the_training_files_in_both_sets():

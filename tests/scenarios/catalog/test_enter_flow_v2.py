@@ -177,3 +177,36 @@ def test_expert_merges_into_the_fast_flow_from_the_ramp(tmp_path):
     # the ego came off the ramp and into the flow's lane; the flow drove at its XML speed
     assert ego_lanes[0] != flow_lane and flow_lane in ego_lanes
     assert flow_seen and max(speed for _, speed in flow_seen) == pytest.approx(flow_speed, abs=0.5)
+
+
+def test_a_route_file_of_it_collects_one_clip_named_after_it_with_the_flow_annotated(tmp_path):
+    """Route XML parsing and clip naming: b2d-collect --routes on a generated EnterActorFlowV2 route, cut short."""
+    import gzip
+    import json
+    from dataclasses import replace
+
+    from b2d_data.cli.collect import main
+    from b2d_data.collection.towns import TownSource, load_map
+    from b2d_data.scenarios.route_xml import write_routes
+
+    town_src = TownSource(preset="all").materialise(tmp_path / "town")
+    world_map = load_map(town_src)
+    route = make_routes(world_map, TYPE, 1, seed=0)[0]
+    start = route.waypoints[0]
+    cut = replace(route, waypoints=tuple(p for p in route.waypoints if math.hypot(p.x - start.x, p.y - start.y) <= 120))
+    write_routes([cut], tmp_path / "routes.xml")
+    out = tmp_path / "data"
+    tiny = ["--width", "64", "--height", "36", "--lidar-azimuth-steps", "90", "--encode-workers", "0", "--no-progress"]
+    args = ["--routes", str(tmp_path / "routes.xml"), "--xodr", str(town_src.xodr), "--out", str(out), *tiny]
+    assert main(args) == 0
+    (clip,) = [p for p in out.iterdir() if p.is_dir() and (p / "anno").is_dir()]
+    # Bench2Drive's clip-name style with the class name as prefix
+    assert clip.name.startswith(f"{TYPE}_{world_map.name}_Route{route.id}_Weather")
+    flow_lane = _key(_xml_wp(world_map, route.scenarios[0].other_parameters["start_actor_flow"]))
+    boxes = []
+    for path in sorted((clip / "anno").glob("*.json.gz")):
+        with gzip.open(path, "rt", encoding="utf-8") as f:
+            boxes += [b for b in json.load(f)["bounding_boxes"][1:] if b["class"] == "vehicle"]
+    # the flow's lane is removed from background traffic at the trigger: cars annotated on it are the flow's
+    on_lane = [b for b in boxes if (b["road_id"], b["lane_id"]) == flow_lane]
+    assert on_lane and all(b["type_id"].startswith("vehicle.") for b in on_lane)

@@ -19,8 +19,8 @@ identical copy, ``scenario_runner/srunner/scenarios/actor_flow.py``):
   - in parallel, once the ego has left a junction (``WaitEndIntersection`` without an id), a second
     ``HandleJunctionScenario`` with only ``extend_road_exit`` = 20 m + the flow route's length from its last
     junction waypoint to the sink (the global planner's trace, summed backwards; the trace ends at the loop
-    variable, i.e. the last lane ``get_same_dir_lanes(sink_wp)`` lists, a lane change away from the flow's own
-    sink at most, which changes the length by a few metres at most);
+    variable, i.e. the last lane ``get_same_dir_lanes(sink_wp)`` lists: the same road beside the flow's own sink,
+    so the length differs by the planner's lane changes, a few metres at most; ours measures the flow's lane);
   - ``SwitchRouteSources(True)`` when the scenario ends.
 - ``_create_test_criteria`` (:144-152): ScenarioTimeoutTest (a CollisionTest only outside route mode).
 

@@ -24,9 +24,10 @@ identical copy, ``scenario_runner/srunner/scenarios/actor_flow.py``):
   - ``SwitchRouteSources(True)`` when the scenario ends.
 - ``_create_test_criteria`` (:144-152): ScenarioTimeoutTest (a CollisionTest only outside route mode).
 
-Ours: the flow's lane path is :func:`~b2d_data.scenarios.catalog.interurban.flow_lane_path` (the lane straight on,
-else the route planner's trace, as ActorFlow's ``trace_route``), 1 m apart, so the extension is 20 m plus the number
-of path points after its last junction point. The second background request goes to whichever junction our
+Ours: a :class:`~b2d_data.scenarios.catalog.flows.FlowScenario` (the flow types' shared shape). The flow's lane
+path is :func:`~b2d_data.scenarios.catalog.interurban.flow_lane_path` (the lane straight on, else the route
+planner's trace, as ActorFlow's ``trace_route``), 1 m apart, so the extension is 20 m plus the number of path points
+after its last junction point. The second background request goes to whichever junction our
 background treats as next when the ego leaves its junction, as LB2.0's ``_extent_road_exit_space`` takes the active
 junction or else the next one. The expert gets the flow's sink in the hint and merges with the gap acceptance of
 :mod:`b2d_data.expert.merging`.
@@ -44,7 +45,7 @@ import logging
 from typing import ClassVar
 
 from b2d_data.maps import Map, Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.interurban import flow_lane_path, location_parameter
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
@@ -54,7 +55,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     same_direction_lanes,
     same_lane,
 )
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim.api import ScenarioHint, Snapshot
 
@@ -122,18 +123,18 @@ def flow_beside(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str,
 
 # -- the scenario ---------------------------------------------------------------------------------------------------
 @register
-class EnterActorFlowV2(JunctionScenario):
+class EnterActorFlowV2(FlowScenario, JunctionScenario):
     """Enter a highway on a lane of one's own beside one fast, pre-populated flow (actor_flow.py EnterActorFlowV2)."""
 
     xml_type = "EnterActorFlowV2"
     #: EnterActorFlow's defaults, which V2 inherits (actor_flow.py :85-86).
     default_interval: ClassVar[tuple[float, float]] = (20.0, 50.0)
     default_flow_speed: ClassVar[float] = 10.0
+    #: SwitchRouteSources(False) before the flow, (True) after it.
+    route_sources_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", self.default_flow_speed)
-        self.interval = ctx.interval("source_dist_interval", self.default_interval)
         self.path: list[Waypoint] = flow_lane_path(ctx)
         self.source = self.path[0]
         sink = ctx.map.get_waypoint(location_parameter(ctx, "end_actor_flow"))
@@ -153,34 +154,31 @@ class EnterActorFlowV2(JunctionScenario):
         self.exit_lanes: list[Waypoint] = same_direction_lanes(exit_wp)
         self._left_junction = WaitEndIntersection(ctx.map)  # no junction id, as the reference's
         self._extended = False
-        self.flow: ActorFlow | None = None
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Keep the ego's entry clear, remove the flow's entry and the lanes after the junction, start the flow."""
-        bg = self.ctx.sim.background
-        bg.handle_junction_scenario(
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Keep the ego's entry clear, remove the flow's own entry and the lanes after the junction, no extension."""
+        self.ctx.sim.background.handle_junction_scenario(
             clear_junction=False, clear_ego_entry=True, remove_entries=[self.source], remove_exits=self.exit_lanes,
             stop_entries=False, extend_road_exit=0.0,
         )  # fmt: skip
-        bg.switch_route_sources(False)
-        self.flow = ActorFlow(
-            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, SINK_DISTANCE, initial_actors=True
-        )
-        self.flow.start()
 
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; extend the road exit once the ego left a junction; SUCCESS within 2 m of a sink point."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """One pre-populated flow on the source's lane."""
+        self.add_flow(self.path, sink_distance=SINK_DISTANCE, initial_actors=True)
+
+    def step(self, snapshot: Snapshot) -> None:
+        """Once the ego has left a junction: extend the road exit (the reference's second HandleJunctionScenario)."""
         ego = self.ctx.ego(snapshot)
-        if ego is None:
-            return ScenarioStatus.RUNNING
-        if not self._extended and self._left_junction.check(ego):
+        if ego is not None and not self._extended and self._left_junction.check(ego):
             self._extended = True
             self.ctx.sim.background.handle_junction_scenario(extend_road_exit=self.extra_space)
-        if any(ego.location.distance_2d(s.transform.location) < SINK_DISTANCE for s in self.sinks):
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
+
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego is within 2 m of the sink point of any same-direction lane."""
+        ego = self.ctx.ego(snapshot)
+        return ego is not None and any(
+            ego.location.distance_2d(s.transform.location) < SINK_DISTANCE for s in self.sinks
+        )
 
     def hint(self) -> ScenarioHint | None:
         """While the flow runs: the flow's sink on its lane (the expert's merge gap acceptance)."""
@@ -188,9 +186,3 @@ class EnterActorFlowV2(JunctionScenario):
             return None
         sink = self.path[-1].transform.location
         return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
-
-    def on_end(self) -> None:
-        """Remove the flow and switch the route sources back on."""
-        if self.flow is not None:
-            self.flow.stop()
-            self.ctx.sim.background.switch_route_sources(True)

@@ -34,7 +34,7 @@ from b2d_data.collection.plan import RouteTask, route_seed
 from b2d_data.collection.runner import run_tasks
 from b2d_data.collection.towns import TownSource, load_map, xodr_in_folder
 
-#: The twelve scenario types of issue 4, then those of issues 12, 13, 11 and 14.
+#: The twelve scenario types of issue 4, then those of issues 12, 13, 11, 14 and 23 (46 types and NoScenario).
 SCENARIOS: tuple[str, ...] = (
     "Accident", "ParkedObstacleTwoWays", "HazardAtSideLane", "HardBreakRoute", "DynamicObjectCrossing",
     "OppositeVehicleRunningRedLight", "SignalizedJunctionLeftTurn", "NonSignalizedJunctionRightTurn",
@@ -55,6 +55,8 @@ SCENARIOS: tuple[str, ...] = (
     "PedestrianCrossing", "VehicleTurningRoutePedestrian", "VehicleTurningRoute", "ParkingCutIn", "StaticCutIn",
     # issue 13: successive lane changes
     "SequentialLaneChange",
+    # issue 23: the LB2.0 training types Bench2Drive drops
+    "EnterActorFlowV2", "PriorityAtJunction",
 )  # fmt: skip
 BAR = 0.9
 

@@ -469,7 +469,7 @@ FLOW_TYPES = frozenset({
     "SignalizedJunctionLeftTurn", "NonSignalizedJunctionLeftTurn", "SignalizedJunctionLeftTurnEnterFlow",
     "NonSignalizedJunctionLeftTurnEnterFlow", "SignalizedJunctionRightTurn", "NonSignalizedJunctionRightTurn",
     "EnterActorFlow", "InterurbanActorFlow", "InterurbanAdvancedActorFlow", "MergerIntoSlowTraffic",
-    "MergerIntoSlowTrafficV2", "HighwayExit", "CrossingBicycleFlow",
+    "MergerIntoSlowTrafficV2", "HighwayExit", "CrossingBicycleFlow", "EnterActorFlowV2",
 })  # fmt: skip
 
 #: ``role_name`` of the actors a scenario spawns (``scenarios.framework.SCENARIO_ROLE``; the expert is privileged).

@@ -86,7 +86,7 @@ class ClipName:
 
     @property
     def is_known_scenario(self) -> bool:
-        """True for the 44 Bench2Drive scenarios and ``NoScenario``."""
+        """True for the 44 Bench2Drive scenarios, the LB2.0-only training types and ``NoScenario``."""
         return self.scenario in BY_CLIP_PREFIX or self.scenario == NO_SCENARIO
 
     @property

@@ -1,4 +1,13 @@
-"""The 44 Bench2Drive scenario types, their clip-name prefixes and skill groups (format.md §9, §8.5)."""
+"""The 44 Bench2Drive scenario types, their clip-name prefixes and skill groups (format.md §9, §8.5), and the two
+Leaderboard 2.0 training types Bench2Drive drops.
+
+``SCENARIO_TYPES`` is Bench2Drive's list and stays exactly that (44 entries: splits, ability scores, synthetic
+corpora). ``LB2_ONLY_TYPES`` is the one place that names the types of LB2.0's ``routes_training.xml`` that Bench2Drive
+has no route of (expert-and-scenarios.md §2.1: it drops ``EnterActorFlowV2`` and ``PriorityAtJunction``). They count
+in no Bench2Drive ability (its ``ability_benchmark.py`` maps only its own 44), and their clip prefix is the class name
+as for every Bench2Drive type whose name holds no underscore. ``BY_XML_TYPE`` / ``BY_CLIP_PREFIX`` know all 46, so
+that route files, clip names and ``b2d-collect --scenario`` accept them.
+"""
 
 from __future__ import annotations
 
@@ -80,11 +89,19 @@ SCENARIO_TYPES: tuple[ScenarioType, ...] = (
     ScenarioType("YieldToEmergencyVehicle", "YieldToEmergencyVehicle", (_GW,)),
 )
 
+#: LB2.0 training types absent from Bench2Drive: generatable, in no ability, clip prefix = XML type.
+LB2_ONLY_TYPES: tuple[ScenarioType, ...] = (
+    ScenarioType("EnterActorFlowV2", "EnterActorFlowV2", ()),
+    ScenarioType("PriorityAtJunction", "PriorityAtJunction", ()),
+)
+#: Every type this package knows: Bench2Drive's 44, then the LB2.0-only ones.
+ALL_SCENARIO_TYPES: tuple[ScenarioType, ...] = SCENARIO_TYPES + LB2_ONLY_TYPES
+
 #: Clip prefix of clips that hold no scenario (Full set only).
 NO_SCENARIO = "NoScenario"
 
-BY_XML_TYPE: dict[str, ScenarioType] = {s.xml_type: s for s in SCENARIO_TYPES}
-BY_CLIP_PREFIX: dict[str, ScenarioType] = {s.clip_prefix: s for s in SCENARIO_TYPES}
+BY_XML_TYPE: dict[str, ScenarioType] = {s.xml_type: s for s in ALL_SCENARIO_TYPES}
+BY_CLIP_PREFIX: dict[str, ScenarioType] = {s.clip_prefix: s for s in ALL_SCENARIO_TYPES}
 
 
 def scenario_type(name: str) -> ScenarioType:
@@ -97,10 +114,13 @@ def scenario_type(name: str) -> ScenarioType:
 
     close = difflib.get_close_matches(name, list(BY_XML_TYPE) + list(BY_CLIP_PREFIX), n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
-    raise KeyError(f"unknown scenario type {name!r}{hint} (44 types are known, see b2d_data.format.SCENARIO_TYPES)")
+    raise KeyError(
+        f"unknown scenario type {name!r}{hint} ({len(ALL_SCENARIO_TYPES)} types are known: Bench2Drive's "
+        f"{len(SCENARIO_TYPES)} in b2d_data.format.SCENARIO_TYPES and LB2.0's LB2_ONLY_TYPES)"
+    )
 
 
 def abilities_of(xml_type: str) -> tuple[Ability, ...]:
-    """Skill groups of an XML scenario type (empty for unknown types)."""
+    """Skill groups of an XML scenario type (empty for unknown and LB2.0-only types)."""
     entry = BY_XML_TYPE.get(xml_type)
     return entry.abilities if entry else ()

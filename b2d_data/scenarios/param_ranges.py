@@ -13,6 +13,9 @@ Where the training set departs from a plain min/max of the file:
 
 - Types absent from ``routes_training.xml`` (the Bench2Drive-only SignalizedJunctionLeftTurnEnterFlow and
   NonSignalizedJunctionLeftTurnEnterFlow) keep their bench2drive220 ranges in both sets.
+- The LB2.0-only EnterActorFlowV2 (9 routes in the file: ``flow_speed`` 15–22, ``source_dist_interval`` from 15–20 to
+  35–40) has no bench2drive220 route: ``bench2drive220`` draws it from the training ranges too. PriorityAtJunction
+  (237 routes) has no parameter.
 - Numbers are drawn as integers in [min, max] (the file's few decimals, e.g. ``flow_speed`` 8.3 and 16.6 m/s,
   lie inside); the upper end of a ``from``/``to`` interval is never drawn below its lower end.
 - Typos are left out: CrossingBicycleFlow's ``source_dist_interval to="3255"`` (3 of 42) and ParkingCutIn's
@@ -178,6 +181,8 @@ _BENCH2DRIVE220: dict[str, dict[str, Spec]] = {
     "MergerIntoSlowTraffic": _flow((9, 10), (14, 16), (33, 42)),
     "MergerIntoSlowTrafficV2": _flow((10, 10), (11, 14), (30, 34)),
     "HighwayExit": _flow((10, 15), (11, 20), (33, 46)),
+    # LB2.0-only: no bench2drive220 route to read a range off; the training ranges (routes_training.xml)
+    "EnterActorFlowV2": _flow((15, 22), (15, 20), (35, 40)),
     "YieldToEmergencyVehicle": {"distance": _r(26, 30)},
     "ParkingExit": {"direction": _RIGHT, "front_vehicle_distance": _r(9, 9), "behind_vehicle_distance": _r(9, 9)},
 }  # fmt: skip
@@ -214,6 +219,7 @@ _TRAINING: dict[str, dict[str, Spec]] = {
     "MergerIntoSlowTraffic": _flow((8, 17), (10, 20), (30, 50)),
     "MergerIntoSlowTrafficV2": _flow((10, 10), (15, 15), (30, 30)),
     "HighwayExit": _flow((10, 15), (10, 25), (25, 50)),
+    "EnterActorFlowV2": _BENCH2DRIVE220["EnterActorFlowV2"],
     "YieldToEmergencyVehicle": {"distance": _r(110, 140)},
     "ParkingExit": {"direction": _RIGHT, "front_vehicle_distance": _r(9, 9), "behind_vehicle_distance": _r(9, 9)},
 }  # fmt: skip

@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from b2d_data.format.scenario_types import NO_SCENARIO, SCENARIO_TYPES
+from b2d_data.format.scenario_types import LB2_ONLY_TYPES, NO_SCENARIO, SCENARIO_TYPES
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import LaneChange, LaneType, Map, Waypoint
+from b2d_data.scenarios.catalog import enter_flow_v2, priority_at_junction
 from b2d_data.scenarios.catalog.crossing_bicycles import bicycle_path
 from b2d_data.scenarios.catalog.junctions import walk_back_to_source
 from b2d_data.scenarios.catalog.road_geometry import (
@@ -900,6 +901,15 @@ LAYOUTS: dict[str, Layout] = {
         "highway_exit", "a highway (>= 80 km/h) exit on the right, with a flow lane to cross and the ego's lane left "
         "of it", turns=("straight", "right"), junction_ok=_highway_exit, approach=(20.0, 30.0),
         departure=(30.0, 40.0), route_path=_exit_route, path_parameters=_exit_flow),
+    # LB2.0-only training types: their placement rules live in their catalog modules
+    "EnterActorFlowV2": Layout(
+        "highway_ramps", "an on-ramp whose lane runs on beside a highway (>= 80 km/h) lane after its junction",
+        turns=("straight", "left", "right"), junction_ok=enter_flow_v2.dedicated_entry,
+        junction_extra=enter_flow_v2.flow_beside, approach=enter_flow_v2.APPROACH, departure=enter_flow_v2.DEPARTURE,
+        trigger_offset=enter_flow_v2.TRIGGER_OFFSET, merge_left_after=enter_flow_v2.MERGE_AFTER),
+    "PriorityAtJunction": Layout(
+        "signalized_junction", "a signalised junction the route drives through",
+        turns=priority_at_junction.LAYOUT_TURNS, signalized=True),
 }  # fmt: skip
 # V2 (Town06's entries with their own lanes) merges the same way on generated towns; only the background differs.
 LAYOUTS["MergerIntoSlowTrafficV2"] = LAYOUTS["MergerIntoSlowTraffic"]
@@ -1128,8 +1138,9 @@ def _fits(
 
 def route_id(seed: int, scenario_type: str, k: int) -> str:
     """Route id: unique over seeds, types and the first 10 000 routes of a call."""
-    # NoScenario routes take the index after the 44 types
-    index = next((i for i, t in enumerate(SCENARIO_TYPES) if t.xml_type == scenario_type), len(SCENARIO_TYPES))
+    # NoScenario routes take the index after the 44 types, the LB2.0-only types the ones after it
+    order = [t.xml_type for t in SCENARIO_TYPES] + [NO_SCENARIO] + [t.xml_type for t in LB2_ONLY_TYPES]
+    index = order.index(scenario_type) if scenario_type in order else len(SCENARIO_TYPES)
     return str((int(seed) * 100 + index) * 10000 + k + 1)
 
 

@@ -57,6 +57,9 @@ TRAINING_RANGES: dict[str, dict[str, tuple[int, int] | set[str]]] = {
     "MergerIntoSlowTraffic": {"flow_speed": (8, 17), "source_dist_interval.from": (10, 20),
                               "source_dist_interval.to": (30, 50)},
     "HighwayExit": {"flow_speed": (10, 15), "source_dist_interval.from": (10, 25), "source_dist_interval.to": (25, 50)},
+    # LB2.0-only (issue 23): its 9 scenarios set 18 / 22 / 15 m/s and 20-40 / 15-40 / 15-35 m
+    "EnterActorFlowV2": {"flow_speed": (15, 22), "source_dist_interval.from": (15, 20),
+                         "source_dist_interval.to": (35, 40)},
 }  # fmt: skip
 
 # The ranges the placement drew before the training set (expert-and-scenarios.md §2.2).

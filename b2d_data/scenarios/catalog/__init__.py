@@ -6,6 +6,7 @@ from b2d_data.scenarios.catalog.crossing import DynamicObjectCrossing
 from b2d_data.scenarios.catalog.crossing_bicycles import CrossingBicycleFlow
 from b2d_data.scenarios.catalog.cut_ins import ParkingCutIn, StaticCutIn
 from b2d_data.scenarios.catalog.enter_flow import EnterActorFlow
+from b2d_data.scenarios.catalog.enter_flow_v2 import EnterActorFlowV2
 from b2d_data.scenarios.catalog.hard_break import HardBreakRoute
 from b2d_data.scenarios.catalog.hazard_side_lane import HazardAtSideLane, HazardAtSideLaneTwoWays
 from b2d_data.scenarios.catalog.highway import HighwayCutIn
@@ -32,6 +33,7 @@ from b2d_data.scenarios.catalog.obstacles import (
 from b2d_data.scenarios.catalog.parking_crossing import ParkingCrossingPedestrian
 from b2d_data.scenarios.catalog.parking_exit import ParkingExit
 from b2d_data.scenarios.catalog.pedestrian_crossing import PedestrianCrossing
+from b2d_data.scenarios.catalog.priority_at_junction import PriorityAtJunction
 from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
 from b2d_data.scenarios.catalog.t_junction import TJunction
 from b2d_data.scenarios.catalog.taking_priority import OppositeVehicleTakingPriority
@@ -68,3 +70,6 @@ __all__ += [
 
 # Issue 13: the highway exit across a flow.
 __all__ += ["HighwayExit"]
+
+# Issue 23: the two LB2.0 training types Bench2Drive drops (format.scenario_types.LB2_ONLY_TYPES).
+__all__ += ["EnterActorFlowV2", "PriorityAtJunction"]

@@ -1,0 +1,216 @@
+"""Issue 23 item 10 and its neighbours: the obstacle scenarios' lane walks, opposite flow, warning sign and
+construction site as scenario_runner's ``leaderboard-2.0`` branch (Bench2Drive ``da12001``) has them.
+
+Each test names the reference file and works out the expected value by hand from it. The scenarios are built on the
+generated town without a simulator (their constructors need only the map and the route).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from b2d_data.format.transform import BoundingBox, Location, Transform, Vector3D
+from b2d_data.format.weather import ROUTE_DEFAULT
+from b2d_data.maps import LaneType, load_opendrive
+from b2d_data.maps.towngen import write_town
+from b2d_data.scenarios.catalog.road_geometry import (
+    first_junction_ahead,
+    lane_walk,
+    opposite_driving_neighbour,
+)
+from b2d_data.scenarios.framework import ScenarioContext, scenario_class
+from b2d_data.scenarios.placement import make_routes
+from b2d_data.scenarios.route import DenseRoute
+from b2d_data.sim.api import ActorKind, ActorState, Snapshot
+
+EGO = 1
+
+
+@pytest.fixture(scope="module")
+def town(tmp_path_factory):
+    return load_opendrive(write_town("all", 0, tmp_path_factory.mktemp("towns")))
+
+
+def build(town, scenario_type: str, **params: str):
+    """The first generated route of ``scenario_type`` and its scenario, XML ``params`` (tag → value) overridden."""
+    route = make_routes(town, scenario_type, 1, seed=0)[0]
+    config = route.scenarios[0]
+    other = dict(config.other_parameters)
+    other.update({tag: {"value": value} for tag, value in params.items()})
+    config = replace(config, other_parameters=other)
+    route = replace(route, scenarios=(config,))
+    dense = DenseRoute.from_route(town, route)
+    ctx = ScenarioContext(sim=None, map=town, route=dense, config=config,  # type: ignore[arg-type]
+                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+    return dense, scenario_class(scenario_type)(ctx)
+
+
+def ego_at(transform: Transform) -> Snapshot:
+    """A snapshot with only the ego, standing still at ``transform``."""
+    ego = ActorState(
+        id=EGO, type_id="vehicle.lincoln.mkz_2020", kind=ActorKind.VEHICLE, transform=transform,
+        velocity=Vector3D(), angular_velocity=Vector3D(), acceleration=Vector3D(),
+        bounding_box=BoundingBox(Location(0, 0, 0.75), Location(2.45, 1.06, 0.75)), semantic_tags=(14,),
+        role_name="hero",
+    )  # fmt: skip
+    return Snapshot(frame=1, timestamp=0.0, actors={EGO: ego}, traffic_lights={}, traffic_signs={},
+                    collisions=(), weather=ROUTE_DEFAULT)  # fmt: skip
+
+
+def along(dense: DenseRoute, a: Location, b: Location) -> float:
+    """Route distance from ``a`` to ``b`` (both projected onto the dense route)."""
+    s = dense.cumulative_length
+    return float(s[dense.closest_index(b)] - s[dense.closest_index(a)])
+
+
+# ------------------------------------------------------------------------------------------------ item 10: lane walks
+
+
+@pytest.mark.parametrize("scenario_type", ("ParkedObstacle", "ParkedObstacleTwoWays", "Accident", "AccidentTwoWays"))
+def test_an_obstacle_beyond_a_junction_stops_before_it(town, scenario_type):
+    # route_obstacles.py _initialize_actors: the obstacle's point is _move_waypoint_forward(starting_wp, distance),
+    # which takes 1 m steps of next(1)[0] and stops at the last point whose next step lies in a junction. With
+    # distance 5000 m the first junction ahead is reached first: if its first point is J m on (1 m steps), the
+    # obstacle stands J - 1 m after the trigger point (we refused the place, or walked on through the junction).
+    _, scenario = build(town, scenario_type, distance="5000")
+    junction = first_junction_ahead(scenario.trigger_waypoint, 5000.0)
+    assert junction is not None
+    _, metres = junction
+    obstacle = scenario.obstacle_waypoint
+    assert not obstacle.is_junction
+    expected = lane_walk(scenario.trigger_waypoint, metres - 1.0)
+    assert len(expected) == metres  # J - 1 steps of 1 m, none of them a dead end
+    assert obstacle.transform.location.distance_2d(expected[-1].transform.location) < 1e-6
+
+
+def test_the_accident_cars_and_the_end_stop_before_a_junction(town):
+    # route_obstacles.py Accident: both crashed cars (police + 10, + 6) and the end (2nd car + 50) are
+    # _move_waypoint_forward walks. The police car stands 1 m before the junction (previous test), so no step is
+    # taken: the three points coincide with the police car's.
+    _, scenario = build(town, "Accident", distance="5000")
+    police = scenario.obstacle_waypoint.transform.location
+    for wp in scenario._car_waypoints:
+        assert wp.transform.location.distance_2d(police) < 1e-6
+    assert scenario.end_reference.transform.location.distance_2d(police) < 1e-6
+
+
+def test_the_opposite_flow_stops_before_the_junction_ahead(town):
+    # atomic_behaviors.py OppositeActorFlow.initialise: source = _move_waypoint_backwards(reference_wp, d), sink =
+    # _move_waypoint_forward(reference_wp, d) with d = 1.5 x limit + 30. reference_wp is the opposite lane beside
+    # the obstacle, which here stands 1 m before a junction; walking that lane backwards (towards the junction)
+    # stops at once, so the flow's source is the opposite-lane point beside the obstacle (we walked d m on, through
+    # the junction).
+    _, scenario = build(town, "ParkedObstacleTwoWays", distance="5000")
+    opposite = opposite_driving_neighbour(scenario.obstacle_waypoint)
+    flow = scenario._make_flow()
+    assert flow is not None
+    assert flow.waypoints[0].transform.location.distance_2d(opposite.transform.location) < 1.0
+
+
+def test_the_opposite_flow_takes_the_ego_speed_limit(town):
+    # atomic_behaviors.py OppositeActorFlow.initialise: speed = reference_actor.get_speed_limit() with the ego as
+    # reference actor, flow distance = 1.5 x speed + 30. With the ego's route point at a 30 km/h limit: cars at
+    # 30 / 3.6 = 8.33 m/s and source and sink 1.5 x 30 + 30 = 75 m either side of the anchor, 150 m apart (the
+    # stretch is junction-free; we took the map's limit at the obstacle).
+    dense, scenario = build(town, "ParkedObstacleTwoWays")
+    dense.speed_limits[:] = 30.0
+    assert scenario.ctx.map.speed_limit(scenario.obstacle_waypoint) != 30.0
+    snapshot = ego_at(scenario.trigger_waypoint.transform)
+    scenario._reference_limit = scenario.ego_speed_limit(snapshot)
+    flow = scenario._make_flow()
+    assert flow is not None
+    assert flow.speed == pytest.approx(30.0 / 3.6)
+    assert len(flow.waypoints) - 1 == pytest.approx(150, abs=2)
+
+
+def test_the_accident_two_ways_flow_is_anchored_beside_the_second_car(town):
+    # route_obstacles.py AccidentTwoWays._create_behavior: reference_wp = self._accident_wp.get_left_lane(), and
+    # _initialize_actors sets self._accident_wp = second_vehicle_wp, 10 + 6 = 16 m past the police car. The flow's
+    # sink is reach m from it towards the ego, reach = 1.5 x 30 + 30 = 75 m at a 30 km/h limit, so it lies
+    # 75 - 16 = 59 m before the police car along the ego's route (we anchored beside the police car: 75 m).
+    dense, scenario = build(town, "AccidentTwoWays")
+    scenario._reference_limit = 30.0
+    reach = 1.5 * 30.0 + 30.0
+    flow = scenario._make_flow()
+    assert flow is not None
+    police = scenario.obstacle_waypoint.transform.location
+    assert along(dense, flow.waypoints[-1].transform.location, police) == pytest.approx(reach - 16.0, abs=1.5)
+
+
+# ------------------------------------------------------------------------------------------------ row 9: the sign
+
+
+def test_the_warning_sign_stands_on_the_first_lane_that_is_neither_driving_nor_parking(town):
+    # route_obstacles.py _spawn_side_prop: walk to the `direction` side while the lane is Driving or Parking;
+    # prop_wp is the last such lane, wp the next one. The sign stands at wp's pose + 0.3 x prop_wp.lane_width along
+    # prop_wp's right vector (negated for left), z + 0.2, yaw + 90. This route draws direction=left on a one-way
+    # road: the lane left of the ego's is a 0.785 m median, so the sign stands on it, 0.3 x 3.74 = 1.12 m further
+    # left.
+    _, scenario = build(town, "ParkedObstacle")
+    side = scenario.direction
+    step = (lambda wp: wp.get_right_lane()) if side == "right" else (lambda wp: wp.get_left_lane())
+    prop_wp = scenario.trigger_waypoint
+    while step(prop_wp).lane_type & (LaneType.DRIVING | LaneType.PARKING):
+        prop_wp = step(prop_wp)
+    beyond = step(prop_wp)
+    yaw = math.radians(prop_wp.transform.rotation.yaw)
+    d = (0.3 if side == "right" else -0.3) * prop_wp.lane_width
+    expected = Location(beyond.transform.location.x - math.sin(yaw) * d, beyond.transform.location.y + math.cos(yaw) * d)
+    sign = scenario.warning_sign_transform()
+    assert sign is not None
+    assert sign.location.distance_2d(expected) < 1e-6
+    assert sign.location.z == pytest.approx(beyond.transform.location.z + 0.2)
+    assert sign.rotation.yaw == pytest.approx(beyond.transform.rotation.yaw + 90.0)
+    # (we stood 0.6 m beyond the outer edge of the outermost driving lane, at the trigger point's yaw + 180)
+
+
+def test_a_left_warning_sign_on_a_two_way_road_has_no_lane(town):
+    # route_obstacles.py _spawn_side_prop with direction=left: get_left_lane of lane -1 is lane 1 and of lane 1 is
+    # lane -1 (CARLA's Map::GetLeft swaps the sign of |id| = 1), both Driving, so LB2.0's walk never ends. We place
+    # no sign there (we used to put it beyond the ego's own lane).
+    _, scenario = build(town, "ParkedObstacleTwoWays", direction="left")
+    assert scenario.trigger_waypoint.lane_id in (-1, 1)
+    assert scenario.warning_sign_transform() is None
+
+
+# ------------------------------------------------------------------------------------------------ row 39: construction
+
+
+@pytest.mark.parametrize("scenario_type", ("ConstructionObstacle", "ConstructionObstacleTwoWays"))
+def test_construction_site_props_as_lb20(town, scenario_type):
+    # construction_crash_vehicle.py _create_construction_setup, from the site pose T = next(distance)[0]:
+    # board: yaw + 180, 5 m along that heading (= 5 m back), then yaw + 90: 5 m behind the site, yaw T + 270;
+    # debris: 2 m ahead, z + 1, yaw T + 90; first cone: 0.85 x lane_width / 2 to the left (direction right; to
+    # the right for left) and 2 m ahead, z + 0.1.
+    _, scenario = build(town, scenario_type)
+    t = scenario.obstacle_waypoint.transform
+    r = math.radians(t.rotation.yaw)
+    fwd = (math.cos(r), math.sin(r))
+    right = (-math.sin(r), math.cos(r))
+    board = scenario.board_transform()
+    assert board.location.distance_2d(Location(t.location.x - 5 * fwd[0], t.location.y - 5 * fwd[1])) < 1e-6
+    assert (board.rotation.yaw - t.rotation.yaw) % 360.0 == pytest.approx(270.0)
+    debris = scenario.debris_transform()
+    assert debris.location.distance_2d(Location(t.location.x + 2 * fwd[0], t.location.y + 2 * fwd[1])) < 1e-6
+    assert debris.location.z == pytest.approx(t.location.z + 1.0)
+    assert (debris.rotation.yaw - t.rotation.yaw) % 360.0 == pytest.approx(90.0)
+    k = scenario.sign * 0.85 * scenario.trigger_waypoint.lane_width / 2.0
+    cone = scenario.cone_transforms()[0]
+    expected = Location(t.location.x - k * right[0] + 2 * fwd[0], t.location.y - k * right[1] + 2 * fwd[1])
+    assert cone.location.distance_2d(expected) < 1e-6
+
+
+def test_construction_reaction_watches_the_site_and_ends_50_m_past_it(town):
+    # construction_crash_vehicle.py _create_behavior: InTriggerDistanceToLocation(ego, construction_wp, 30) and
+    # WaitUntilInFrontPosition(ego, _move_waypoint_forward(construction_wp, 50)): the watched point is the site
+    # point (we watched the board, 5 m before it) and the end is 50 m past it (we: 8 m of cones + 50 m).
+    dense, scenario = build(town, "ConstructionObstacle")
+    assert scenario.approach_actor_id() is None
+    site = scenario.obstacle_waypoint.transform.location
+    ego = ego_at(scenario.trigger_waypoint.transform)
+    scenario.update(ego)
+    assert along(dense, site, scenario._end_transform.location) == pytest.approx(50.0, abs=0.6)

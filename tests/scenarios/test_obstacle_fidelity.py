@@ -20,6 +20,7 @@ from b2d_data.maps.towngen import write_town
 from b2d_data.scenarios.catalog.road_geometry import (
     first_junction_ahead,
     lane_walk,
+    offset_transform,
     opposite_driving_neighbour,
 )
 from b2d_data.scenarios.framework import ScenarioContext, scenario_class
@@ -214,3 +215,42 @@ def test_construction_reaction_watches_the_site_and_ends_50_m_past_it(town):
     ego = ego_at(scenario.trigger_waypoint.transform)
     scenario.update(ego)
     assert along(dense, site, scenario._end_transform.location) == pytest.approx(50.0, abs=0.6)
+
+
+# ------------------------------------------------------------------------------------------------ row 40: ControlLoss
+
+
+class _SpawnRecorder:
+    """The one simulator call ``Scenario.spawn`` makes, recording what was spawned."""
+
+    def __init__(self) -> None:
+        self.spawned: list[str] = []
+
+    def try_spawn_actor(self, spec, transform) -> int:
+        self.spawned.append(spec.type_id)
+        return 100 + len(self.spawned)
+
+
+def test_control_loss_patches_act_in_sequence_with_one_debris_model(town):
+    # control_loss.py _create_behavior: one Sequence of [InTriggerDistanceToLocation(patch k, 2) -> Parallel(
+    # AddNoiseToRouteEgo, InTriggerDistanceToLocation(patch k, 2, operator.gt))] for k = 1, 2, 3. So the noise of
+    # patch 2 cannot start before patch 1 was entered and left, and a patch's noise stops as soon as the ego is more
+    # than 2 m from it (Euclidean), not 2 m past it. _initialize_actors spawns 'static.prop.dirtdebris01' three
+    # times.
+    _, scenario = build(town, "ControlLoss")
+    recorder = _SpawnRecorder()
+    scenario.ctx = replace(scenario.ctx, sim=recorder)
+    scenario.build()
+    assert recorder.spawned == ["static.prop.dirtdebris01"] * 3
+    first, second = (p.transform for p in scenario.patches[:2])
+    # standing on patch 2 first: the sequence still waits for patch 1 (we switched patch 2's noise on)
+    scenario.update(ego_at(second))
+    assert not scenario.noisy
+    # on patch 1: noise; then 2.5 m to its side, level with it (0 m past): more than 2 m away, so noise off
+    scenario.update(ego_at(first))
+    assert scenario.noisy
+    scenario.update(ego_at(offset_transform(first, lateral=2.5)))
+    assert not scenario.noisy
+    # now patch 2 is watched
+    scenario.update(ego_at(second))
+    assert scenario.noisy

@@ -254,3 +254,25 @@ def test_control_loss_patches_act_in_sequence_with_one_debris_model(town):
     # now patch 2 is watched
     scenario.update(ego_at(second))
     assert scenario.noisy
+
+
+# ------------------------------------------------------------------------------------------------ row 31: red light
+
+
+def test_red_light_runner_conflict_point_is_where_the_entry_lines_cross(town):
+    # opposite_vehicle_taking_priority.py _initialize_actors: _collision_location = get_geometric_linear_intersection(
+    # starting_wp, source_entry_wps[0], True) (scenario_helper.py): the crossing of the line along the ego's lane
+    # where it enters the junction with the line along the adversary's entry lane. On this route (direction right)
+    # the ego enters heading -90 (a line x = x_entry) and the adversary's lane runs at yaw 0/180 (a line
+    # y = y_adversary), so the point is (x_entry, y_adversary) (we took where the ego's route meets the adversary's
+    # path, 0.5 m off).
+    route = make_routes(town, "OppositeVehicleRunningRedLight", 4, seed=0)[2]
+    dense = DenseRoute.from_route(town, route)
+    ctx = ScenarioContext(sim=None, map=town, route=dense, config=route.scenarios[0],  # type: ignore[arg-type]
+                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+    scenario = scenario_class("OppositeVehicleRunningRedLight")(ctx)
+    assert scenario.direction == "right"
+    assert scenario.ego_entry.transform.rotation.yaw % 360.0 == pytest.approx(270.0)
+    assert scenario.spawn_waypoint.transform.rotation.yaw % 180.0 == pytest.approx(0.0, abs=1e-6)
+    assert scenario.conflict.x == pytest.approx(scenario.ego_entry.transform.location.x, abs=0.05)
+    assert scenario.conflict.y == pytest.approx(scenario.spawn_waypoint.transform.location.y, abs=0.05)

@@ -77,16 +77,22 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
         self._crossed = False
 
     def _conflict_point(self, entry) -> Location:
-        """Where the ego's route inside the junction meets the adversary's path (else the entry lines' crossing)."""
-        route = self.ctx.route
-        stop = self.exit_index if self.exit_index is not None else len(route.waypoints)
-        ego_xy = route.locations[self.entry_index : stop, :2]
-        adv = np.array([[wp.transform.location.x, wp.transform.location.y] for wp in self.path])
-        if len(ego_xy):
-            d = np.hypot(ego_xy[:, None, 0] - adv[None, :, 0], ego_xy[:, None, 1] - adv[None, :, 1])
-            i, k = np.unravel_index(int(np.argmin(d)), d.shape)
-            if d[i, k] < 2.0:
-                return route.location(self.entry_index + int(i))
+        """Where the ego's and the adversary's entry lines cross (LB2.0's ``get_geometric_linear_intersection``).
+
+        For ``direction=opposite`` (placement's choice for a left-turning ego) those lines are near-parallel and
+        LB2.0's point lies far away or nowhere, so the adversary would never start: there the conflict point is
+        where the ego's route inside the junction meets the adversary's path.
+        """
+        if self.direction == "opposite":
+            route = self.ctx.route
+            stop = self.exit_index if self.exit_index is not None else len(route.waypoints)
+            ego_xy = route.locations[self.entry_index : stop, :2]
+            adv = np.array([[wp.transform.location.x, wp.transform.location.y] for wp in self.path])
+            if len(ego_xy):
+                d = np.hypot(ego_xy[:, None, 0] - adv[None, :, 0], ego_xy[:, None, 1] - adv[None, :, 1])
+                i, k = np.unravel_index(int(np.argmin(d)), d.shape)
+                if d[i, k] < 2.0:
+                    return route.location(self.entry_index + int(i))
         crossing = line_intersection(self.ego_entry, entry)
         if crossing is None:
             raise ScenarioSetupError(

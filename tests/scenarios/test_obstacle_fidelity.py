@@ -26,7 +26,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
 from b2d_data.scenarios.framework import ScenarioContext, scenario_class
 from b2d_data.scenarios.placement import make_routes
 from b2d_data.scenarios.route import DenseRoute
-from b2d_data.sim.api import ActorKind, ActorState, Snapshot
+from b2d_data.sim.api import ActorKind, ActorState, Snapshot, VehicleControl
 
 EGO = 1
 
@@ -276,3 +276,50 @@ def test_red_light_runner_conflict_point_is_where_the_entry_lines_cross(town):
     assert scenario.spawn_waypoint.transform.rotation.yaw % 180.0 == pytest.approx(0.0, abs=1e-6)
     assert scenario.conflict.x == pytest.approx(scenario.ego_entry.transform.location.x, abs=0.05)
     assert scenario.conflict.y == pytest.approx(scenario.spawn_waypoint.transform.location.y, abs=0.05)
+
+
+# ------------------------------------------------------------------------------------------------ row 32: collision
+
+
+class _ControlRecorder:
+    """The simulator calls a ConstantVelocityAgent makes, recorded."""
+
+    def __init__(self) -> None:
+        self.controls: list = []
+        self.velocities: list = []
+
+    def apply_control(self, actor_id, control) -> None:
+        self.controls.append(control)
+
+    def set_target_velocity(self, actor_id, velocity) -> None:
+        self.velocities.append(velocity)
+
+
+def test_the_red_light_runner_drops_its_forced_velocity_at_its_first_collision(town):
+    # CARLA PythonAPI agents/navigation/constant_velocity_agent.py (ConstantVelocityAgentBehavior's agent): its
+    # collision sensor calls stop_constant_velocity() (disable_constant_velocity, restart_time inf), and run_step
+    # then returns an empty carla.VehicleControl() for good: no throttle, no brake, the velocity no longer forced.
+    from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack
+    from b2d_data.sim.api import CollisionEvent
+
+    route = make_routes(town, "OppositeVehicleRunningRedLight", 4, seed=0)[2]
+    dense = DenseRoute.from_route(town, route)
+    ctx = ScenarioContext(sim=None, map=town, route=dense, config=route.scenarios[0],  # type: ignore[arg-type]
+                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+    scenario = scenario_class("OppositeVehicleRunningRedLight")(ctx)
+    recorder = _ControlRecorder()
+    scenario.ctx = replace(scenario.ctx, sim=recorder)
+    scenario.adversary = 7
+    snapshot = ego_at(scenario.trigger_waypoint.transform)
+    adversary = replace(snapshot.actors[EGO], id=7, role_name="scenario", transform=scenario.path[0].transform)
+    conflict = Transform(scenario.conflict, scenario.trigger_waypoint.transform.rotation)
+    ego_near = replace(snapshot.actors[EGO], transform=conflict)  # within 12 m: the adversary starts
+    first = replace(snapshot, actors={EGO: ego_near, 7: adversary})
+    scenario.update(first)
+    assert isinstance(scenario._agent, ConstantVelocityAgent) and isinstance(scenario._agent.path, PathTrack)
+    assert len(recorder.velocities) == 1  # driven at its forced velocity
+    hit = CollisionEvent(2, 7, EGO, "vehicle.lincoln.mkz_2020", adversary.location)
+    scenario.update(replace(first, frame=2, collisions=(hit,)))
+    scenario.update(replace(first, frame=3))
+    assert len(recorder.velocities) == 1  # never forced again
+    assert recorder.controls[-2:] == [VehicleControl(), VehicleControl()]

@@ -2,9 +2,10 @@
 
 The adversary waits 30 m before the junction on the ``direction`` entry (left, right or opposite of the ego's);
 when the ego's time to arrival at the conflict point drops below 2.2 s (or it is within 12 m) the adversary
-crosses straight at 60 km/h with a constant-velocity agent ignoring everything, for the time it needs to reach
-10 m past its exit, and is removed. The lights are frozen: the ego's green, every other one red. The scenario
-ends when the ego has left the junction.
+crosses straight at 60 km/h with a constant-velocity agent ignoring everything (until its first collision, after
+which it coasts), for the time it needs to reach 10 m past its exit, and is removed. The lights are frozen: the
+ego's green, every other one red. The scenario ends when the ego has left the junction. The conflict point is where
+the ego's and the adversary's entry lines cross (LB2.0), except for ``opposite`` (see ``_conflict_point``).
 """
 
 from __future__ import annotations
@@ -142,7 +143,9 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
                 math.hypot(ego.location.x - self.conflict.x, ego.location.y - self.conflict.y),
             )
             track = PathTrack.from_waypoints(self.path)
-            self._agent = ConstantVelocityAgent(self.ctx.sim, self.adversary, track, self.adversary_speed)
+            # ConstantVelocityAgentBehavior's CARLA agent drops its forced velocity at its first collision
+            self._agent = ConstantVelocityAgent(self.ctx.sim, self.adversary, track, self.adversary_speed,
+                                                stop_at_collision=True)  # fmt: skip
         if self._agent is not None and not self._crossed:
             self._agent.run_step(snapshot)
             if self._crossing.check(snapshot) or self._agent.done:

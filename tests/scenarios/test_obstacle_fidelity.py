@@ -323,3 +323,45 @@ def test_the_red_light_runner_drops_its_forced_velocity_at_its_first_collision(t
     scenario.update(replace(first, frame=3))
     assert len(recorder.velocities) == 1  # never forced again
     assert recorder.controls[-2:] == [VehicleControl(), VehicleControl()]
+
+
+# ------------------------------------------------------------------------------------------------ row 37: turning route
+
+
+class _BackgroundRecorder:
+    """Background hooks called by a scenario, recorded by name."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[str, tuple]] = []
+
+    def __getattr__(self, name: str):
+        return lambda *args, **kwargs: self.calls.append((name, args))
+
+
+class _TurningSim(_SpawnRecorder, _ControlRecorder):
+    def __init__(self) -> None:
+        _SpawnRecorder.__init__(self)
+        _ControlRecorder.__init__(self)
+        self.background = _BackgroundRecorder()
+
+
+@pytest.mark.parametrize("scenario_type", ("VehicleTurningRoute", "VehicleTurningRoutePedestrian"))
+def test_turning_route_leaves_crossing_space_at_the_tta_trigger_only(town, scenario_type):
+    # object_crash_intersection.py _create_behavior (both classes): no background request at the trigger; after the
+    # TTA / 6 m trigger the sequence runs LeaveCrossingSpace(self._collision_wp) in route mode, then moves the
+    # crosser (we cleared the junction and removed the exit at the trigger). VehicleTurningRoute's crosser is
+    # 'vehicle.diamondback.century' (we drew any bicycle).
+    dense, scenario = build(town, scenario_type)
+    sim = _TurningSim()
+    scenario.ctx = replace(scenario.ctx, sim=sim)
+    if scenario_type == "VehicleTurningRoute":
+        scenario.build()
+        assert sim.spawned == ["vehicle.diamondback.century"]
+    far = ego_at(scenario.trigger_waypoint.transform)
+    scenario.start(far)
+    assert sim.background.calls == []
+    scenario.update(far)
+    assert sim.background.calls == []
+    at_crossing = ego_at(scenario.collision_waypoint.transform)  # within 6 m: the crosser starts
+    scenario.update(at_crossing)
+    assert sim.background.calls == [("leave_crossing_space", (scenario.collision_waypoint,))]

@@ -371,12 +371,14 @@ class ConstructionSite(RoadObstacle):
     0.85 × half the trigger lane's width to the passing side: 4 cones 2 m apart straight on, then 3 cones 1 m apart
     across toward the obstacle side, the closed lane's outline as the ego passes it. The reaction waits for the
     ego within 30 m of the site point; the scenario ends 50 m past it. The ego's lane is taken out of the
-    background traffic while the scenario runs (LB2.0's only background change at the trigger).
+    background traffic while the scenario runs, and the stretch up to 20 m past the site is cleared at the trigger
+    (LB2.0 only removes the lane; see :meth:`start`).
     """
 
     #: LB2.0's default ``distance`` of both construction types (construction_crash_vehicle.py), not 120 m.
     default_distance = 100.0
     jumps_to_obstacle = True
+    clear_extra = 20.0
     trigger_distance = 30.0
     board_before = 5.0
     debris_after = 2.0
@@ -419,11 +421,15 @@ class ConstructionSite(RoadObstacle):
         self.spawn_warning_sign(WARNING_CONSTRUCTION)
 
     def start(self, snapshot: Snapshot) -> None:
-        """Take the ego's lane out of the background traffic, put the site up.
+        """Clear the stretch, take the ego's lane out of the background traffic, put the site up.
 
         LB2.0 spawns the board, the debris and the cones at build 200 m underground and lifts them into place at
         the trigger (construction_crash_vehicle.py); here they are spawned at the trigger, once the lane is clear.
         """
+        # Not LB2.0 (RemoveRoadLane only): our remove_road_lane misses a car ahead on the route under another lane
+        # key, which then stood before the cones with the ego waiting behind it until TickRuntime (route 41030001,
+        # Town100, seed 41)
+        super().start(snapshot)
         self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
         self._removed_lane = True
         board = self.board_transform()

@@ -365,3 +365,33 @@ def test_turning_route_leaves_crossing_space_at_the_tta_trigger_only(town, scena
     at_crossing = ego_at(scenario.collision_waypoint.transform)  # within 6 m: the crosser starts
     scenario.update(at_crossing)
     assert sim.background.calls == [("leave_crossing_space", (scenario.collision_waypoint,))]
+
+
+# ------------------------------------------------------------------------------------------------ row 21: EV in front
+
+
+class _IdleAgent:
+    """Stands in for the emergency vehicle's agent: takes its speed, drives nothing."""
+
+    speed = 0.0
+
+    def run_step(self, snapshot) -> None:
+        return None
+
+
+@pytest.mark.parametrize(("ahead", "passed"), ((1.0, False), (7.9, True), (16.9, False)))
+def test_the_emergency_vehicle_counts_as_in_front_as_wait_until_in_front(town, ahead, passed):
+    # yield_to_emergency_vehicle.py end condition 2: WaitUntilInFront(ev, ego) with factor 1 and check_distance
+    # (atomic_trigger_conditions.py): the reference is the ego's lane point ev.extent.x + ego.extent.x ahead of it,
+    # here 2.45 + 2.45 = 4.9 m; the EV must be past it (dot > 0) and within 10 m of it. EV centres 1 m ahead of the
+    # ego: 3.9 m short of it, not in front (we: in front of the ego's centre); 7.9 m: 3 m past it, in front;
+    # 16.9 m: past it but 12 m away, not yet (we: in front).
+    _, scenario = build(town, "YieldToEmergencyVehicle")
+    scenario.ev = 7
+    scenario._agent = _IdleAgent()
+    ego = ego_at(scenario.trigger_waypoint.transform).actors[EGO]
+    ev = replace(ego, id=7, role_name="scenario",
+                 transform=offset_transform(scenario.trigger_waypoint, forward=ahead))  # fmt: skip
+    snapshot = replace(ego_at(ego.transform), actors={EGO: ego, 7: ev})
+    scenario.update(snapshot)
+    assert scenario._passed is passed

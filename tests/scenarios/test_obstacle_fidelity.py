@@ -395,3 +395,59 @@ def test_the_emergency_vehicle_counts_as_in_front_as_wait_until_in_front(town, a
     snapshot = replace(ego_at(ego.transform), actors={EGO: ego, 7: ev})
     scenario.update(snapshot)
     assert scenario._passed is passed
+
+
+# ------------------------------------------------------------------------------------------------ row 41: door, left
+
+
+def _left_parking_road() -> str:
+    """One straight 400 m road heading east: lane 1 driving (westbound), -1 parking 2.5 m, -2 driving, -3 sidewalk."""
+
+    def lane(lane_id: int, kind: str, width: float) -> str:
+        return (f'<lane id="{lane_id}" type="{kind}" level="false"><width sOffset="0" a="{width}" b="0" c="0" d="0"/>'
+                '<roadMark sOffset="0" type="solid" color="white" width="0.15" laneChange="none"/></lane>')  # fmt: skip
+
+    return (
+        '<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="4" name="LeftParking"/>'
+        '<road name="Road 1" length="400" id="1" junction="-1"><link/>'
+        '<type s="0" type="town"><speed max="40" unit="km/h"/></type>'
+        '<planView><geometry s="0" x="0" y="0" hdg="0" length="400"><line/></geometry></planView>'
+        '<elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/></elevationProfile>'
+        '<lanes><laneOffset s="0" a="0" b="0" c="0" d="0"/><laneSection s="0">'
+        f'<left>{lane(1, "driving", 3.5)}</left>'
+        '<center><lane id="0" type="none" level="false"/></center>'
+        f'<right>{lane(-1, "parking", 2.5)}{lane(-2, "driving", 3.5)}{lane(-3, "sidewalk", 2.0)}</right>'
+        "</laneSection></lanes></road></OpenDRIVE>"
+    )
+
+
+def test_vehicle_opens_door_left_anchors_the_flow_two_lanes_left(tmp_path):
+    # vehicle_opens_door.py with direction=left: front_wp = starting_wp.next(50)[0], parked_wp =
+    # front_wp.get_left_lane() (the parking lane -1), and the flow's reference_wp = parked_wp.get_left_lane(), which
+    # for lane -1 is lane 1 (CARLA's GetLeft flips |id| = 1): the westbound driving lane. OppositeActorFlow walks
+    # that lane its own way: with the 40 km/h limit, 1.5 x 40 + 30 = 90 m, so from x = 200 + 90 = 290 (source,
+    # previous) to 200 - 90 = 110 (sink, next). (We refused: no opposite driving lane left of the ego's lane.)
+    from b2d_data.format.transform import Rotation
+    from b2d_data.scenarios.route_xml import ScenarioConfig
+
+    path = tmp_path / "LeftParking.xodr"
+    path.write_text(_left_parking_road())
+    town = load_opendrive(path)
+    y = 2.5 + 3.5 / 2.0  # lane -2's centre, CARLA y (OpenDRIVE's right is CARLA's +y)
+    from b2d_data.format.road_option import RoadOption
+
+    lane = lane_walk(town.get_waypoint(Location(5.0, y, 0.0)), 390.0)
+    dense = DenseRoute.from_pairs([(wp, RoadOption.LANEFOLLOW) for wp in lane], town)
+    config = ScenarioConfig("VehicleOpensDoorTwoWays_1", "VehicleOpensDoorTwoWays",
+                            Transform(Location(150.0, y, 0.0), Rotation(yaw=0.0)),
+                            {"direction": {"value": "left"}, "distance": {"value": "50"}})  # fmt: skip
+    ctx = ScenarioContext(sim=None, map=town, route=dense, config=config,  # type: ignore[arg-type]
+                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+    scenario = scenario_class("VehicleOpensDoorTwoWays")(ctx)
+    assert scenario.side_waypoint.lane_id == -1
+    scenario._reference_limit = 40.0
+    flow = scenario._make_flow()
+    assert flow is not None
+    assert {wp.lane_id for wp in flow.waypoints} == {1}
+    assert flow.waypoints[0].transform.location.x == pytest.approx(290.0, abs=1.0)
+    assert flow.waypoints[-1].transform.location.x == pytest.approx(110.0, abs=1.0)

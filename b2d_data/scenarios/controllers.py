@@ -243,6 +243,10 @@ class ConstantVelocityAgent:
     ``match_leader`` gives CARLA 0.9.15's own hazard rule instead: a vehicle in the path within
     ``base_threshold + speed [m/s]`` metres makes the forced velocity jump to the leader's velocity along the
     actor's heading at once (``ConstantVelocityAgent.run_step`` sets ``hazard_speed`` as the constant velocity).
+
+    ``stop_at_collision`` gives CARLA's collision sensor rule: at the actor's first collision the forced velocity is
+    dropped for good (``stop_constant_velocity``; ``restart_time`` is infinite by default) and every later step
+    applies an empty ``VehicleControl()``, so the vehicle coasts.
     """
 
     def __init__(
@@ -261,9 +265,12 @@ class ConstantVelocityAgent:
         crossing_stop_gap: float = 2.0,
         lateral_margin: float = 0.3,
         match_leader: bool = False,
+        stop_at_collision: bool = False,
     ) -> None:
         self.sim = sim
         self.match_leader = match_leader
+        self.stop_at_collision = stop_at_collision
+        self.collided = False
         self.crossing_stop_gap = crossing_stop_gap
         self.lateral_margin = lateral_margin
         self.predict = predict
@@ -304,6 +311,12 @@ class ConstantVelocityAgent:
             self.done = self.done or self._seen
             return None
         self._seen = True
+        if self.stop_at_collision and not self.collided:
+            self.collided = any(c.actor_id == self.actor_id for c in snapshot.collisions)
+        if self.collided:
+            control = VehicleControl()
+            self.sim.apply_control(self.actor_id, control)
+            return control
         s_now = self.progress(snapshot)
         loc = actor.location
         if self._last is not None:

@@ -160,3 +160,22 @@ class WaitEndIntersection:
         elif self.inside:
             self.done = True
         return self.done
+
+
+def wait_until_in_front(
+    town: Map, actor: ActorState, other: ActorState, factor: float = 1.0, max_distance: float | None = 10.0
+) -> bool:
+    """``WaitUntilInFront(actor, other, factor, check_distance)``: ``actor`` is past the lane point ``factor`` × the
+    two half-lengths ahead of ``other`` (and, unless ``max_distance`` is None, within that many metres of it)."""
+    length = max(1e-6, factor) * (actor.bounding_box.extent.x + other.bounding_box.extent.x)
+    wp = town.get_waypoint(other.location)
+    ahead = wp.next(length) if wp is not None else []
+    if not ahead:
+        return False
+    ref = ahead[0].transform
+    fwd = ref.get_forward_vector()
+    loc = actor.location
+    dx, dy, dz = loc.x - ref.location.x, loc.y - ref.location.y, loc.z - ref.location.z
+    if fwd.x * dx + fwd.y * dy + fwd.z * dz <= 0.0:
+        return False
+    return max_distance is None or math.sqrt(dx * dx + dy * dy + dz * dz) < max_distance

@@ -350,6 +350,10 @@ class BackgroundTraffic(Protocol):
         """Stop spawning on ``lane`` and remove its vehicles."""
         ...
 
+    def leave_crossing_space(self, collision_wp: Waypoint) -> None:
+        """Remove the opposite vehicles within 20 m of the lane left of ``collision_wp`` and stop those within 30 m."""
+        ...
+
     def readd_road_lane(self, offset: int) -> None:
         """Spawn again on the ego-relative lane ``offset`` (0 ego lane, 1 right, -1 left)."""
         ...

@@ -1,9 +1,11 @@
 """ControlLoss (§2.2 #1): the ego loses grip over three patches of dirt debris.
 
-Three flat debris props (no collision) lie on the lane 14, 48 and 74 m after the trigger point. From the moment
-the ego is within 2 m of a patch until it is 2 m past it, every tick's control of the ego gets noise: throttle +=
-N(±0.03, 0.01) and steer += N(±0.055, 0.015), the signs drawn at random per patch. The scenario ends when the
-ego has driven 110 m after the trigger. Only the route criteria apply.
+Three flat debris props (``static.prop.dirtdebris01``, no collision) lie on the lane 14, 48 and 74 m after the
+trigger point. As LB2.0's behaviour sequence, the patches act one after the other: from the moment the ego is
+within 2 m of the current patch until it is more than 2 m from it, every tick's control of the ego gets noise:
+throttle += N(±0.03, 0.01) and steer += N(±0.055, 0.015), the signs drawn at random per patch; only then is the
+next patch watched. The scenario ends when the ego has driven 110 m after the trigger, or 110 − 74 = 36 m after
+leaving the third patch. Only the route criteria apply.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 
-from b2d_data.format.transform import Location, Transform
+from b2d_data.format.transform import Transform
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, horizontal_distance
@@ -19,8 +21,8 @@ from b2d_data.sim.api import Snapshot, VehicleControl
 
 log = logging.getLogger(__name__)
 
-#: The debris blueprints (flat: the wheels roll over them).
-DEBRIS_MODELS = ("static.prop.dirtdebris01", "static.prop.dirtdebris02", "static.prop.dirtdebris03")
+#: The debris blueprint (flat: the wheels roll over them); LB2.0 uses this one for all three patches.
+DEBRIS_MODEL = "static.prop.dirtdebris01"
 
 
 @dataclass
@@ -32,12 +34,6 @@ class _Patch:
     steer_mean: float
     active: bool = False
     passed: bool = False
-
-    def ahead_of(self, location: Location) -> float:
-        """How far (m) ``location`` lies beyond the patch along the lane."""
-        f = self.transform.get_forward_vector()
-        loc = self.transform.location
-        return f.x * (location.x - loc.x) + f.y * (location.y - loc.y)
 
 
 @register
@@ -66,28 +62,35 @@ class ControlLoss(Scenario):
             )
         self.debris: list[int] = []
         self._after = DriveDistance(self.end_distance)
+        #: The index of the patch the sequence is at (3: all passed), and the drive after the last one.
+        self.current = 0
+        self._after_last = DriveDistance(self.end_distance - self.debris_distances[-1])
 
     def build(self) -> None:
         """The three debris patches on the lane."""
         for patch in self.patches:
-            model = DEBRIS_MODELS[int(self.ctx.rng.integers(len(DEBRIS_MODELS)))]
             retries = [offset_transform(patch.transform, forward=f, z=0.01) for f in (0.5, -0.5)]
-            self.debris.append(self.spawn(model, offset_transform(patch.transform, z=0.01), retries=retries))
+            self.debris.append(self.spawn(DEBRIS_MODEL, offset_transform(patch.transform, z=0.01), retries=retries))
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Switch the noise on near a patch and off 2 m past it; SUCCESS after 110 m."""
+        """LB2.0's sequence: noise on within 2 m of the current patch, off beyond 2 m of it, then the next patch;
+        SUCCESS after 110 m, or 36 m after the last patch."""
         ego = self.ctx.ego(snapshot)
         if ego is None:
             return ScenarioStatus.RUNNING
-        for patch in self.patches:
-            if patch.passed:
-                continue
-            if not patch.active and horizontal_distance(ego.location, patch.transform.location) < self.trigger_distance:
+        done = self._after.check(ego)
+        if self.current < len(self.patches):
+            patch = self.patches[self.current]
+            near = horizontal_distance(ego.location, patch.transform.location)
+            if not patch.active and near < self.trigger_distance:
                 patch.active = True
                 log.debug("%s: noise on at (%.1f, %.1f)", self.name, ego.location.x, ego.location.y)
-            if patch.active and patch.ahead_of(ego.location) > self.trigger_distance:
+            elif patch.active and near > self.trigger_distance:
                 patch.active, patch.passed = False, True
-        return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
+                self.current += 1
+        elif self._after_last.check(ego):
+            done = True
+        return ScenarioStatus.SUCCESS if done else ScenarioStatus.RUNNING
 
     @property
     def noisy(self) -> bool:

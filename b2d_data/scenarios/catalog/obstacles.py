@@ -7,6 +7,11 @@ trigger the background leaves the stretch up to the obstacle free; once the ego 
 5 s have passed, the scenario's own reaction starts (background speed cap, or the opposite flow on two-way roads);
 the scenario ends when the ego has passed a point 50 m beyond the last obstacle, or after the 240 s timeout.
 
+Lane walks are LB2.0's ``_move_waypoint_forward``: 1 m steps that stop at the last point before a junction, so a
+``distance`` reaching into a junction puts the obstacle just before it (the construction site and the door car are
+the exception: LB2.0 jumps ``next(distance)[0]`` there). The opposite flow is LB2.0's ``OppositeActorFlow``: its
+source and sink stop before junctions too, and its reach and speed come from the ego's speed limit when it starts.
+
 Each type combines an obstacle site (what stands on the lane: :class:`ParkedCarSite`, :class:`ConstructionSite`,
 :class:`AccidentSite`) with a reaction (multi-lane roads: :class:`SpeedCapObstacle`; two-way roads:
 :class:`OppositeFlowObstacle`).
@@ -15,10 +20,11 @@ Each type combines an obstacle site (what stands on the lane: :class:`ParkedCarS
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from typing import ClassVar
 
-from b2d_data.format.transform import Transform
+from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import (
     CONSTRUCTION_CONE,
@@ -34,10 +40,10 @@ from b2d_data.scenarios.catalog.actor_choices import (
 from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
 from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
+    move_before_junction,
     neighbour,
     offset_transform,
     opposite_driving_neighbour,
-    same_direction,
     same_direction_driving_neighbour,
 )
 from b2d_data.scenarios.controllers import park
@@ -66,6 +72,8 @@ class RoadObstacle(Scenario):
     trigger_distance: ClassVar[float] = 50.0
     wait_duration: ClassVar[float] = 5.0
     end_distance: ClassVar[float] = 50.0
+    #: LB2.0 places the obstacle with ``next(distance)[0]`` (through junctions) rather than ``_move_waypoint_forward``.
+    jumps_to_obstacle: ClassVar[bool] = False
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -74,20 +82,26 @@ class RoadObstacle(Scenario):
         if self.direction not in ("left", "right"):
             raise ScenarioSetupError(f"{self.name}: direction must be 'left' or 'right', got {self.direction!r}")
         self.sign = 1.0 if self.direction == "right" else -1.0
-        wp = move_along(self.trigger_waypoint, self.distance)
-        if wp is None or wp.is_junction:
-            raise ScenarioSetupError(
-                f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point for the obstacle"
-            )
+        if self.jumps_to_obstacle:
+            found = move_along(self.trigger_waypoint, self.distance)
+            if found is None:
+                raise ScenarioSetupError(f"{self.name}: the lane ends within {self.distance:.0f} m of the trigger point")
+            wp = found
+        else:
+            wp = move_before_junction(self.trigger_waypoint, self.distance)
         self.obstacle_waypoint: Waypoint = wp
+        self.end_reference = wp
+        self.place_site()
         self.check_layout()
         self.first_id: int | None = None
         self.last_id: int | None = None
-        self.end_reference = wp
         self._approach = DistanceTrigger(self.trigger_distance)
         self._wait = Timer(self.wait_duration)
         self._end_transform: Transform | None = None
         self.reacting = False
+
+    def place_site(self) -> None:
+        """Find the lane points of the rest of the obstacle site (before :meth:`check_layout`)."""
 
     def check_layout(self) -> None:
         """Raise :class:`ScenarioSetupError` when the road lacks what the scenario needs."""
@@ -101,23 +115,43 @@ class RoadObstacle(Scenario):
         park(self.ctx.sim, actor_id)
         return actor_id
 
-    def spawn_warning_sign(self, type_id: str = WARNING_ACCIDENT) -> None:
-        """A warning sign just beyond the outer edge of the outermost driving/parking lane near the trigger point."""
-        wp = self.trigger_waypoint
-        lateral = 0.0
-        current = wp
+    def warning_sign_transform(self) -> Transform | None:
+        """Where LB2.0's ``_spawn_side_prop`` puts the warning sign, or None where it cannot.
+
+        Walking to the ``direction`` side from the trigger point over driving and parking lanes (of either
+        direction, as CARLA's ``get_left_lane`` crosses the centre line), the sign stands on the first lane that is
+        neither, 0.3 × the last crossed lane's width further out, turned 90 degrees from that lane's heading.
+        LB2.0 fails where that lane does not exist (``None.transform``) and never ends the walk where it comes back
+        to a lane it crossed (``left`` on a two-way road: the left of lane ∓1 is lane ±1); both give None here.
+        """
+        prop_wp = self.trigger_waypoint
+        seen = {(prop_wp.road_id, prop_wp.lane_id)}
         while True:
-            other = neighbour(current, self.direction)
-            if other is None or not same_direction(current, other):
-                break
+            other = neighbour(prop_wp, self.direction)
+            if other is None:
+                return None
             if not other.lane_type & (LaneType.DRIVING | LaneType.PARKING):
                 break
-            lateral += 0.5 * (current.lane_width + other.lane_width)
-            current = other
-        lateral += 0.5 * current.lane_width + 0.6
-        transforms = [offset_transform(wp, lateral=self.sign * lateral, forward=f, yaw=180.0) for f in (0.0, 2.0, 4.0)]
+            if (other.road_id, other.lane_id) in seen:
+                return None
+            seen.add((other.road_id, other.lane_id))
+            prop_wp = other
+        # the displacement follows prop_wp's right vector (its left for direction=left); the pose is other's
+        yaw = math.radians(prop_wp.transform.rotation.yaw)
+        out = self.sign * 0.3 * prop_wp.lane_width
+        base = other.transform
+        loc = Location(base.location.x - math.sin(yaw) * out, base.location.y + math.cos(yaw) * out,
+                       base.location.z + 0.2)  # fmt: skip
+        return Transform(loc, Rotation(pitch=0.0, yaw=base.rotation.yaw + 90.0, roll=0.0))
+
+    def spawn_warning_sign(self, type_id: str = WARNING_ACCIDENT) -> None:
+        """The warning sign at :meth:`warning_sign_transform` (left out, with a warning, where there is none)."""
+        transform = self.warning_sign_transform()
+        if transform is None:
+            log.warning("%s: no lane for the warning sign %s of the trigger point", self.name, self.direction)
+            return
         try:
-            self.spawn(type_id, transforms[0], retries=transforms[1:])
+            self.spawn(type_id, transform)
         except ScenarioSetupError as exc:
             log.warning("%s: no warning sign (%s)", self.name, exc)
 
@@ -152,8 +186,7 @@ class RoadObstacle(Scenario):
             self.reacting = True
             self.react(snapshot)
         if self._end_transform is None:
-            end = move_along(self.end_reference, self.end_distance)
-            self._end_transform = (end or self.end_reference).transform
+            self._end_transform = move_before_junction(self.end_reference, self.end_distance).transform
         return ScenarioStatus.SUCCESS if is_in_front(ego, self._end_transform) else ScenarioStatus.RUNNING
 
 
@@ -194,26 +227,39 @@ class OppositeFlowObstacle(RoadObstacle):
         super().__init__(ctx)
         self.frequency = ctx.interval("frequency", (20.0, 100.0))
         self._flow: ActorFlow | None = None
+        self._reference_limit: float | None = None
+
+    def flow_anchor(self) -> Waypoint:
+        """The ego-lane point whose left lane anchors the opposite flow (LB2.0: the obstacle's lane point)."""
+        return self.obstacle_waypoint
 
     def check_layout(self) -> None:
         """Needs an opposite-direction driving lane to the left of the ego's lane."""
-        if opposite_driving_neighbour(self.obstacle_waypoint) is None:
+        anchor = self.flow_anchor()
+        if opposite_driving_neighbour(anchor) is None:
             raise ScenarioSetupError(
                 f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road "
-                f"{self.obstacle_waypoint.road_id} lane {self.obstacle_waypoint.lane_id} at the obstacle"
+                f"{anchor.road_id} lane {anchor.lane_id} at the obstacle"
             )
 
     def _make_flow(self) -> ActorFlow | None:
-        opposite = opposite_driving_neighbour(self.obstacle_waypoint)
+        opposite = opposite_driving_neighbour(self.flow_anchor())
         if opposite is None:
             return None
         # the opposite lane drives against the ego: its source lies ahead of the obstacle (its "previous")
-        return self._flow_along(opposite, lambda wp, d, forward: move_along(wp, d, forward=forward) or wp)
+        return self._flow_along(opposite, move_before_junction)
+
+    def ego_speed_limit(self, snapshot: Snapshot) -> float:
+        """The speed limit (km/h) at the ego's route point: LB2.0's ``ego.get_speed_limit()``."""
+        return float(self.ctx.route.speed_limits[self.ego_route_point(snapshot)])
 
     def _flow_along(self, lane: Waypoint, walk: Callable[[Waypoint, float, bool], Waypoint]) -> ActorFlow | None:
         """LB2.0's OppositeActorFlow on ``lane``: source and sink ``1.5 × limit [km/h] + 30`` m back and on (by
-        ``walk``), cars at the limit at the obstacle; None (logged) when no path joins them."""
-        limit = self.ctx.map.speed_limit(self.obstacle_waypoint)
+        ``walk``), cars at the limit; the limit is the ego's when the flow starts (the map's at the obstacle before
+        that). None (logged) when no path joins source and sink."""
+        limit = self._reference_limit
+        if limit is None:
+            limit = self.ctx.map.speed_limit(self.obstacle_waypoint)
         reach = 1.5 * limit + 30.0
         source, sink = walk(lane, reach, False), walk(lane, reach, True)
         try:
@@ -227,6 +273,8 @@ class OppositeFlowObstacle(RoadObstacle):
         """Allow the wrong direction, pause the normal opposite traffic, start the opposite flow."""
         self.request_switch(SWITCH_WRONG_DIRECTION, False)
         self.ctx.sim.background.change_opposite_behavior(active=False)
+        # OppositeActorFlow.initialise reads the ego's speed limit when the flow starts
+        self._reference_limit = self.ego_speed_limit(snapshot)
         self._flow = self._make_flow()
         if self._flow is not None:
             self._flow.start()
@@ -281,14 +329,19 @@ class AccidentSite(RoadObstacle):
     second_gap = 6.0
 
     def __init__(self, ctx: ScenarioContext) -> None:
+        self._crashed: list[int] = []
         super().__init__(ctx)
-        first = move_along(self.obstacle_waypoint, self.first_gap)
-        second = move_along(first, self.second_gap) if first is not None else None
-        if first is None or second is None or first.is_junction or second.is_junction:
-            raise ScenarioSetupError(f"{self.name}: the accident needs 16 m of junction-free lane after the police car")
+
+    def place_site(self) -> None:
+        """The crashed cars 10 m and 6 m on, each walk stopping before a junction (LB2.0 ``_move_waypoint_forward``)."""
+        first = move_before_junction(self.obstacle_waypoint, self.first_gap)
+        second = move_before_junction(first, self.second_gap)
         self._car_waypoints = (first, second)
         self.end_reference = second
-        self._crashed: list[int] = []
+
+    def flow_anchor(self) -> Waypoint:
+        """LB2.0 AccidentTwoWays anchors the flow beside the second crashed car (``self._accident_wp``)."""
+        return self._car_waypoints[1]
 
     def build(self) -> None:
         """Warning sign, police car with its lights on, two crashed cars."""
@@ -313,14 +366,18 @@ class AccidentSite(RoadObstacle):
 class ConstructionSite(RoadObstacle):
     """A lane closed by a construction site (§2.2 #7, #8), LB2.0's ``_create_construction_setup``.
 
-    A traffic-warning board stands on the lane 5 m before the site, dirt debris 2 m after it; 4 cones run 2 m apart
-    along the lane edge on the passing side (0.85 × half the lane width out), then 3 cones 1 m apart back across the
-    lane toward the obstacle side: the closed lane's outline as the ego passes it.
-    The ego's lane is taken out of the background traffic while the scenario runs.
+    The site point is ``next(distance)[0]`` from the trigger point. From its pose, in straight lines: a
+    traffic-warning board 5 m back (yaw + 270), dirt debris 2 m on (yaw + 90, 1 m up), and cones starting
+    0.85 × half the trigger lane's width to the passing side: 4 cones 2 m apart straight on, then 3 cones 1 m apart
+    across toward the obstacle side, the closed lane's outline as the ego passes it. The reaction waits for the
+    ego within 30 m of the site point; the scenario ends 50 m past it. The ego's lane is taken out of the
+    background traffic while the scenario runs, and the stretch up to 20 m past the site is cleared at the trigger
+    (LB2.0 only removes the lane; see :meth:`start`).
     """
 
     #: LB2.0's default ``distance`` of both construction types (construction_crash_vehicle.py), not 120 m.
     default_distance = 100.0
+    jumps_to_obstacle = True
     clear_extra = 20.0
     trigger_distance = 30.0
     board_before = 5.0
@@ -332,32 +389,32 @@ class ConstructionSite(RoadObstacle):
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        board = move_along(self.obstacle_waypoint, self.board_before, forward=False)
-        along = self.edge_cones * self.edge_gap
-        end = move_along(self.obstacle_waypoint, along)
-        if board is None or end is None or board.is_junction or end.is_junction:
-            raise ScenarioSetupError(
-                f"{self.name}: the construction site needs {self.board_before + along:.0f} m of junction-free lane"
-            )
-        self._board_waypoint = board
-        self.end_reference = end
         self._removed_lane = False
 
+    def approach_actor_id(self) -> int | None:
+        """None: LB2.0 watches the site point itself (``InTriggerDistanceToLocation(construction_wp)``)."""
+        return None
+
+    def board_transform(self) -> Transform:
+        """The traffic-warning board: 5 m back from the site point along its heading, turned by 180 + 90 degrees."""
+        return offset_transform(self.obstacle_waypoint, forward=-self.board_before, yaw=270.0)
+
+    def debris_transform(self) -> Transform:
+        """The debris: 2 m on from the site point, 1 m up, turned by 90 degrees."""
+        return offset_transform(self.obstacle_waypoint, forward=self.debris_after, z=1.0, yaw=90.0)
+
     def cone_transforms(self) -> list[Transform]:
-        """Where the cones stand: along the lane edge away from the obstacle side, then across toward that side."""
-        wp = self.obstacle_waypoint
-        edge = -self.sign * 0.85 * wp.lane_width / 2.0
-        out = []
-        current: Waypoint | None = wp
-        for _ in range(self.edge_cones):
-            current = move_along(current, self.edge_gap) if current is not None else None
-            if current is None:
-                break
-            out.append(offset_transform(current, lateral=edge))
-        last = current or wp
-        out += [offset_transform(last, lateral=edge + self.sign * self.across_gap * (k + 1))
-                for k in range(self.across_cones)]  # fmt: skip
-        return out
+        """Where the cones stand: straight on along the passing-side edge, then across toward the obstacle side."""
+        edge = -self.sign * 0.85 * self.trigger_waypoint.lane_width / 2.0
+        along = [offset_transform(self.obstacle_waypoint, lateral=edge, forward=self.edge_gap * (k + 1), z=0.1)
+                 for k in range(self.edge_cones)]  # fmt: skip
+        ahead = self.edge_gap * self.edge_cones
+        across = [
+            offset_transform(self.obstacle_waypoint, lateral=edge + self.sign * self.across_gap * (k + 1),
+                             forward=ahead, z=0.1, yaw=self.sign * 90.0)
+            for k in range(self.across_cones)
+        ]  # fmt: skip
+        return along + across
 
     def build(self) -> None:
         """Construction warning sign at the road's edge (the site itself appears at the trigger)."""
@@ -367,15 +424,17 @@ class ConstructionSite(RoadObstacle):
         """Clear the stretch, take the ego's lane out of the background traffic, put the site up.
 
         LB2.0 spawns the board, the debris and the cones at build 200 m underground and lifts them into place at
-        the trigger (construction_crash_vehicle.py); here they are spawned at the trigger, once the stretch is clear.
+        the trigger (construction_crash_vehicle.py); here they are spawned at the trigger, once the lane is clear.
         """
+        # Not LB2.0 (RemoveRoadLane only): our remove_road_lane misses a car ahead on the route under another lane
+        # key, which then stood before the cones with the ego waiting behind it until TickRuntime (route 41030001,
+        # Town100, seed 41)
         super().start(snapshot)
         self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
         self._removed_lane = True
-        board = offset_transform(self._board_waypoint, yaw=180.0)
-        self.first_id = self.spawn(TRAFFIC_WARNING, board, retries=[offset_transform(board, forward=-1.0)])
-        debris = move_along(self.obstacle_waypoint, self.debris_after) or self.obstacle_waypoint
-        self._spawn_prop(DEBRIS, offset_transform(debris))
+        board = self.board_transform()
+        self.first_id = self.spawn(TRAFFIC_WARNING, board, retries=[offset_transform(board, lateral=-1.0)])
+        self._spawn_prop(DEBRIS, self.debris_transform())
         for transform in self.cone_transforms():
             self.last_id = self._spawn_prop(CONSTRUCTION_CONE, transform) or self.last_id
 

@@ -2,9 +2,10 @@
 
 The adversary waits 30 m before the junction on the ``direction`` entry (left, right or opposite of the ego's);
 when the ego's time to arrival at the conflict point drops below 2.2 s (or it is within 12 m) the adversary
-crosses straight at 60 km/h with a constant-velocity agent ignoring everything, for the time it needs to reach
-10 m past its exit, and is removed. The lights are frozen: the ego's green, every other one red. The scenario
-ends when the ego has left the junction.
+crosses straight at 60 km/h with a constant-velocity agent ignoring everything (until its first collision, after
+which it coasts), for the time it needs to reach 10 m past its exit, and is removed. The lights are frozen: the
+ego's green, every other one red. The scenario ends when the ego has left the junction. The conflict point is where
+the ego's and the adversary's entry lines cross (LB2.0), except for ``opposite`` (see ``_conflict_point``).
 """
 
 from __future__ import annotations
@@ -77,16 +78,22 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
         self._crossed = False
 
     def _conflict_point(self, entry) -> Location:
-        """Where the ego's route inside the junction meets the adversary's path (else the entry lines' crossing)."""
-        route = self.ctx.route
-        stop = self.exit_index if self.exit_index is not None else len(route.waypoints)
-        ego_xy = route.locations[self.entry_index : stop, :2]
-        adv = np.array([[wp.transform.location.x, wp.transform.location.y] for wp in self.path])
-        if len(ego_xy):
-            d = np.hypot(ego_xy[:, None, 0] - adv[None, :, 0], ego_xy[:, None, 1] - adv[None, :, 1])
-            i, k = np.unravel_index(int(np.argmin(d)), d.shape)
-            if d[i, k] < 2.0:
-                return route.location(self.entry_index + int(i))
+        """Where the ego's and the adversary's entry lines cross (LB2.0's ``get_geometric_linear_intersection``).
+
+        For ``direction=opposite`` (placement's choice for a left-turning ego) those lines are near-parallel and
+        LB2.0's point lies far away or nowhere, so the adversary would never start: there the conflict point is
+        where the ego's route inside the junction meets the adversary's path.
+        """
+        if self.direction == "opposite":
+            route = self.ctx.route
+            stop = self.exit_index if self.exit_index is not None else len(route.waypoints)
+            ego_xy = route.locations[self.entry_index : stop, :2]
+            adv = np.array([[wp.transform.location.x, wp.transform.location.y] for wp in self.path])
+            if len(ego_xy):
+                d = np.hypot(ego_xy[:, None, 0] - adv[None, :, 0], ego_xy[:, None, 1] - adv[None, :, 1])
+                i, k = np.unravel_index(int(np.argmin(d)), d.shape)
+                if d[i, k] < 2.0:
+                    return route.location(self.entry_index + int(i))
         crossing = line_intersection(self.ego_entry, entry)
         if crossing is None:
             raise ScenarioSetupError(
@@ -136,7 +143,9 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
                 math.hypot(ego.location.x - self.conflict.x, ego.location.y - self.conflict.y),
             )
             track = PathTrack.from_waypoints(self.path)
-            self._agent = ConstantVelocityAgent(self.ctx.sim, self.adversary, track, self.adversary_speed)
+            # ConstantVelocityAgentBehavior's CARLA agent drops its forced velocity at its first collision
+            self._agent = ConstantVelocityAgent(self.ctx.sim, self.adversary, track, self.adversary_speed,
+                                                stop_at_collision=True)  # fmt: skip
         if self._agent is not None and not self._crossed:
             self._agent.run_step(snapshot)
             if self._crossing.check(snapshot) or self._agent.done:

@@ -4,9 +4,13 @@ VehicleTurningRoutePedestrian: from the trigger on a pedestrian stands on the ex
 junction (left side for a right turn, right side for a left turn, as LB2.0's), facing across; when the ego's time to
 arrival at the first exit-lane point (+0.5 m) drops below 2.2 s (or within 6 m) it walks across the whole exit road
 at 1.8 m/s and is removed.
-VehicleTurningRoute: a bicycle on the right side of the exit road 11 m after the first exit point, facing the
-road; TTA (1.8 s, 6 m) on that lane point; it crosses at 1.8 m/s for twice its distance to the lane point and is
-removed. Both end when the ego has driven 40 m more.
+VehicleTurningRoute: a ``vehicle.diamondback.century`` bicycle on the right side of the exit road 11 m after the
+first exit point, facing the road; TTA (1.8 s, 6 m) on that lane point; it crosses at 1.8 m/s for twice its distance
+to the lane point and is removed. Both end when the ego has driven 40 m more.
+
+The background is left alone at the trigger; when the crosser starts (at the TTA trigger) the background leaves the
+crossing space: LB2.0's ``LeaveCrossingSpace(collision_wp)`` removes the opposite vehicles within 20 m of the lane
+left of the crossing point and stops those within 30 m.
 
 VehicleTurningRoutePedestrian keeps LB2.0's own CollisionTest in route mode (VehicleTurningRoute returns none): the
 route adds it to its criteria, so a collision from the trigger to the scenario's end is counted twice.
@@ -21,7 +25,7 @@ import numpy as np
 
 from b2d_data.format.transform import Vector3D
 from b2d_data.maps import LaneType, Waypoint
-from b2d_data.scenarios.catalog.actor_choices import random_bicycle, random_walker
+from b2d_data.scenarios.catalog.actor_choices import random_walker
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import (
     find_side_lane,
@@ -39,6 +43,9 @@ from b2d_data.scenarios.triggers import DriveDistance, TimeToArrivalTrigger
 from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
+
+#: VehicleTurningRoute's crosser (object_crash_intersection.py requests this blueprint).
+BICYCLE = "vehicle.diamondback.century"
 
 
 def road_side_offset(wp: Waypoint, side: str) -> float:
@@ -83,12 +90,9 @@ class _TurningRouteScenario(JunctionScenario):
             )
         return wp
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Keep the background from the exit road's crossing (the junction and the exit the ego takes)."""
-        self.ctx.sim.background.handle_junction_scenario(
-            clear_junction=True, clear_ego_entry=False, remove_entries=[], remove_exits=[self.ego_exit],
-            stop_entries=False, extend_road_exit=0.0,
-        )  # fmt: skip
+    def leave_crossing_space(self) -> None:
+        """LB2.0's ``LeaveCrossingSpace(self._collision_wp)`` as the crosser starts (route mode)."""
+        self.ctx.sim.background.leave_crossing_space(self.collision_waypoint)
 
 
 @register
@@ -116,12 +120,11 @@ class VehicleTurningRoutePedestrian(_TurningRouteScenario):
         self._yaw = 270.0 if side == "right" else 90.0
 
     def start(self, snapshot: Snapshot) -> None:
-        """As the turning scenarios start; the pedestrian appears on the exit road's sidewalk, facing across.
+        """The pedestrian appears on the exit road's sidewalk, facing across.
 
         LB2.0 spawns it at build 200 m underground and lifts it into place at the trigger
         (object_crash_intersection.py).
         """
-        super().start(snapshot)
         base = self.collision_waypoint
         candidates = [
             offset_transform(base, lateral=self.start_lateral, forward=f, z=1.0, yaw=self._yaw)
@@ -146,6 +149,7 @@ class VehicleTurningRoutePedestrian(_TurningRouteScenario):
         if self._walk is None and self.walker is not None:
             if not self._tta.check(ego):
                 return ScenarioStatus.RUNNING
+            self.leave_crossing_space()
             heading = math.radians(self.collision_waypoint.transform.rotation.yaw + self._yaw)
             self._walk = WalkerController(
                 self.ctx.sim, self.walker, Vector3D(math.cos(heading), math.sin(heading), 0.0), self.walker_speed,
@@ -193,7 +197,7 @@ class VehicleTurningRoute(_TurningRouteScenario):
         candidates = [
             offset_transform(base, lateral=self.start_lateral, forward=f, z=0.2, yaw=270.0) for f in (0.0, 1.0, -1.0)
         ]
-        self.bicycle = self.spawn(random_bicycle(self.ctx.rng), candidates[0], retries=candidates[1:])
+        self.bicycle = self.spawn(BICYCLE, candidates[0], retries=candidates[1:])
         park(self.ctx.sim, self.bicycle)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
@@ -204,6 +208,7 @@ class VehicleTurningRoute(_TurningRouteScenario):
         if self._agent is None and self.bicycle is not None:
             if not self._tta.check(ego):
                 return ScenarioStatus.RUNNING
+            self.leave_crossing_space()
             self._agent = ConstantVelocityAgent(self.ctx.sim, self.bicycle, PathTrack(self._crossing()),
                                                 self.bicycle_speed)  # fmt: skip
         if self._agent is not None and not self._removed:

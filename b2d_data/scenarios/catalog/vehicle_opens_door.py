@@ -7,10 +7,12 @@ behind the ego stops; 5 s later the wrong-direction check is switched off, the o
 and a flow starts. The scenario ends 50 m past the car (or after 240 s); the background behind then resumes.
 
 The flow is LB2.0's, not ParkedObstacleTwoWays' opposite one: ``OppositeActorFlow(parked_wp.get_left_lane(), ...)``
-with ``parked_wp = front_wp.get_right_lane()`` (vehicle_opens_door.py) is anchored on the lane left of the parked
-car, which is the ego's own driving lane. Its source lies ``1.5 × limit [km/h] + 30`` m behind the car on that lane
-and its sink as far ahead (both stopping before a junction), so in CARLA the ego meets an empty opposite lane and
-cars coming up behind it in its own lane. The default ``distance`` is LB2.0's 50 m.
+(vehicle_opens_door.py) is anchored on the lane left of the parked car. For ``direction=right``
+(``parked_wp = front_wp.get_right_lane()``) that is the ego's own driving lane: its source lies
+``1.5 × limit [km/h] + 30`` m behind the car on that lane and its sink as far ahead (both stopping before a
+junction), so in CARLA the ego meets an empty opposite lane and cars coming up behind it in its own lane. For
+``direction=left`` (``parked_wp = front_wp.get_left_lane()``) it is the lane beyond the car, two lanes left of the
+ego's. The car's lane point is ``next(distance)[0]`` from the trigger point; the default ``distance`` is LB2.0's 50 m.
 """
 
 from __future__ import annotations
@@ -22,7 +24,12 @@ from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_car_with_doors
 from b2d_data.scenarios.catalog.flows import ActorFlow
 from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
-from b2d_data.scenarios.catalog.road_geometry import move_before_junction, neighbour, offset_transform
+from b2d_data.scenarios.catalog.road_geometry import (
+    move_before_junction,
+    neighbour,
+    offset_transform,
+    opposite_driving_neighbour,
+)
 from b2d_data.scenarios.controllers import park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import Timer, TimeToArrivalTrigger
@@ -51,12 +58,21 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
     xml_type = "VehicleOpensDoorTwoWays"
     #: LB2.0's default ``distance`` (vehicle_opens_door.py), not the 120 m of the other obstacle scenarios.
     default_distance = 50.0
+    jumps_to_obstacle = True
     clear_extra = 20.0
     tta_time: ClassVar[float] = 3.0
     tta_distance: ClassVar[float] = 10.0
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
+        self._door_trigger = TimeToArrivalTrigger(self.obstacle_waypoint.transform.location, self.tta_time,
+                                                  self.tta_distance)  # fmt: skip
+        self._flow_wait = Timer(self.wait_duration)
+        self.door_opened = False
+        self._stopped_back = False
+
+    def place_site(self) -> None:
+        """The side lane the car stands in."""
         side = side_lane(self.obstacle_waypoint, self.direction)
         if side is None:
             wp = self.obstacle_waypoint
@@ -65,11 +81,25 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
                 f"{MIN_SIDE_LANE_WIDTH} m wide {self.direction} of road {wp.road_id} lane {wp.lane_id} at the car"
             )
         self.side_waypoint = side
-        self._door_trigger = TimeToArrivalTrigger(self.obstacle_waypoint.transform.location, self.tta_time,
-                                                  self.tta_distance)  # fmt: skip
-        self._flow_wait = Timer(self.wait_duration)
-        self.door_opened = False
-        self._stopped_back = False
+
+    def flow_anchor(self) -> Waypoint:
+        """LB2.0's ``parked_wp.get_left_lane()``: the ego's lane for ``right``, two lanes left of it for ``left``."""
+        anchor = self.side_waypoint.get_left_lane()
+        if anchor is None:
+            raise ScenarioSetupError(f"{self.name}: no lane left of the parked car for the flow")
+        return anchor
+
+    def check_layout(self) -> None:
+        """``right`` needs the two-way road as before; ``left`` only a lane beyond the car (LB2.0's only check)."""
+        if self.direction == "right":
+            if opposite_driving_neighbour(self.obstacle_waypoint) is None:
+                wp = self.obstacle_waypoint
+                raise ScenarioSetupError(
+                    f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road "
+                    f"{wp.road_id} lane {wp.lane_id} at the car"
+                )
+        else:
+            self.flow_anchor()
 
     def build(self) -> None:
         """The parked car, pushed toward the driving lane, hand brake on."""
@@ -89,13 +119,9 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         return self.door_opened and self._flow_wait.check(snapshot)
 
     def _make_flow(self) -> ActorFlow | None:
-        """LB2.0's flow of this scenario: on the ego's lane, from behind the parked car to as far beyond it.
-
-        The anchor is the driving lane beside the car toward the road, the lane point abreast of the car
-        (``front_wp``, the one the car was placed from). For ``direction=right`` that is exactly LB2.0's
-        ``parked_wp.get_left_lane()``; placement and bench2drive220 use no other direction.
-        """
-        return self._flow_along(self.obstacle_waypoint, move_before_junction)
+        """LB2.0's flow of this scenario on :meth:`flow_anchor`'s lane, walked its own way from as far behind the
+        car to as far beyond it (for ``right``: the ego's lane, from behind the car to beyond it)."""
+        return self._flow_along(self.flow_anchor(), move_before_junction)
 
     def open_door(self) -> None:
         """Open the traffic-side front door and stop the background behind the ego."""

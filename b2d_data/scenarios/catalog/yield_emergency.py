@@ -7,8 +7,9 @@ its path. That is LB2.0's arithmetic: ``AdaptiveConstantVelocityAgentBehavior`` 
 increment is 25 m/s whatever its docstring says. A vehicle in its path within 10 m + its speed [m/s] sets its
 speed to that vehicle's at once (CARLA's ConstantVelocityAgent hazard rule), so it closes in and tails an ego that
 does not give way. The scenario ends 10 s after the vehicle came within 50 m of the
-ego, or once it is in front of the ego and drove 50 m more; YieldToEmergencyVehicleTest then fails if the vehicle is
-still behind the ego.
+ego, or once it is in front of the ego (``WaitUntilInFront``: past the ego's lane point the two half-lengths ahead,
+and within 10 m of it) and drove 50 m more; YieldToEmergencyVehicleTest then fails if the vehicle is still behind
+the ego.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from b2d_data.scenarios.framework import (
     YieldToEmergencyVehicleTest,
     register,
 )
-from b2d_data.scenarios.triggers import DistanceTrigger, DriveDistance, Timer, is_in_front
+from b2d_data.scenarios.triggers import DistanceTrigger, DriveDistance, Timer, wait_until_in_front
 from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
@@ -129,7 +130,7 @@ class YieldToEmergencyVehicle(Scenario):
         if self._close.check(ego, ev.location) and self._idle.check(snapshot):
             return ScenarioStatus.SUCCESS
         if not self._passed:
-            self._passed = is_in_front(ev, ego)
+            self._passed = wait_until_in_front(self.ctx.map, ev, ego)
         if self._passed and self._ev_after.check(ev):
             return ScenarioStatus.SUCCESS
         return ScenarioStatus.RUNNING

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.format.transform import Location, Rotation, Transform, Vector3D
 from b2d_data.sim import blueprints
 from b2d_data.sim.api import ActorKind, ActorSpec, SimulatorError, Snapshot, SpawnError
 from b2d_data.sim.builtin.lane_following import (
@@ -244,6 +244,27 @@ class BackgroundTrafficManager:
             on_lane = (wp.road_id, wp.lane_id) == key
             if on_lane or (offset is not None and veh.source == "road" and veh.lane_offset == offset):
                 self._destroy(vid)
+
+    def leave_crossing_space(self, collision_wp: Waypoint) -> None:
+        """Remove the opposite vehicles within 20 m of the lane left of ``collision_wp`` and stop those within 30 m.
+
+        BackgroundActivity's ``_leave_crossing_space`` (LeaveCrossingSpace): distances are to the point of the lane
+        left of ``collision_wp``; a stopped vehicle gets a zero velocity once and then drives on.
+        """
+        opposite = collision_wp.get_left_lane()
+        if opposite is None:
+            return
+        target = opposite.transform.location
+        snapshot = self._world.snapshot()
+        for vid, veh in list(self._vehicles.items()):
+            actor = snapshot.actors.get(vid)
+            if veh.source != "opposite" or actor is None:
+                continue
+            distance = actor.location.distance(target)
+            if distance < 20.0:
+                self._destroy(vid)
+            elif distance < 30.0:
+                self._world.set_target_velocity(vid, Vector3D())
 
     def readd_road_lane(self, offset: int) -> None:
         """Spawn again on the ego-relative lane ``offset`` (0 ego lane, 1 right, −1 left); every removed lane is

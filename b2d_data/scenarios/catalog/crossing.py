@@ -14,8 +14,9 @@ import logging
 import math
 
 from b2d_data.format.transform import Vector3D
-from b2d_data.maps import LaneType
+from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import DEFAULT_BLOCKER_MODEL, half_extent, random_walker
+from b2d_data.scenarios.catalog.layout import STRAIGHTISH, Layout, register_layouts, rightmost
 from b2d_data.scenarios.catalog.road_geometry import (
     find_side_lane,
     lateral_offset,
@@ -138,3 +139,29 @@ class DynamicObjectCrossing(Scenario):
                 if actor_id is not None:
                     self.destroy(actor_id)
         return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _sidewalk_ahead(town: Map, wp: Waypoint) -> bool:
+    """A sidewalk on the right where the blocker and the pedestrian stand (40–51 m after the trigger)."""
+    return _sidewalk_at(town, wp, 40.0)
+
+
+def _sidewalk_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """A sidewalk on the right ``distance`` to ``distance + 11`` m after the trigger (blocker, then pedestrian)."""
+    ahead: Waypoint | None = move_along(wp, distance, step=10.0)
+    for step in (5.0, 6.0, 0.0):
+        if ahead is None or find_side_lane(ahead, "right", LaneType.SIDEWALK) is None:
+            return False
+        if step:
+            ahead = move_along(ahead, step, step=step)
+    return True
+
+
+register_layouts({
+    "DynamicObjectCrossing": Layout("sidewalk", "rightmost lane with a sidewalk on the right, 110 m junction-free",
+                                    rightmost, clear_after=110.0, extra=_sidewalk_ahead, max_turn=STRAIGHTISH,
+                                    reach_param="distance", reach_ok=_sidewalk_at),
+})  # fmt: skip

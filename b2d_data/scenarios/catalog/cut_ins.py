@@ -21,6 +21,15 @@ import numpy as np
 
 from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
+from b2d_data.scenarios.catalog.layout import (
+    STRAIGHTISH,
+    Layout,
+    multi_lane_left,
+    multi_lane_right,
+    parking_ahead,
+    register_layouts,
+    rightmost,
+)
 from b2d_data.scenarios.catalog.road_geometry import (
     lane_walk,
     lateral_offset,
@@ -244,3 +253,16 @@ class StaticCutIn(Scenario):
             self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
         self._agent.run_step(snapshot)
         return ScenarioStatus.SUCCESS if self._agent.done else ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "ParkingCutIn": Layout("parking_lane", "rightmost lane with a parking lane on the right 24–40 m ahead, 100 m "
+                           "junction-free", rightmost, clear_after=100.0, pre=(12.0, 14.0),
+                           extra=parking_ahead((24.0, 28.0, 32.0, 36.0, 40.0)), max_turn=STRAIGHTISH),
+    "StaticCutIn": Layout("multi_lane", "two same-direction lanes (ego on the left one), 130 m junction-free",
+                          multi_lane_right, clear_after=130.0, max_turn=STRAIGHTISH,
+                          directions={"right": multi_lane_right, "left": multi_lane_left}, reach_param="distance"),
+})  # fmt: skip

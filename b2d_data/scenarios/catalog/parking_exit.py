@@ -14,8 +14,9 @@ import logging
 
 from b2d_data.format.rig import EGO_HALF_EXTENT
 from b2d_data.format.transform import Transform
-from b2d_data.maps import LaneType, Waypoint
+from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
+from b2d_data.scenarios.catalog.layout import Layout, any_lane, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import move_along, neighbour, offset_transform
 from b2d_data.scenarios.controllers import LaneFollowingAgent, park
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
@@ -100,3 +101,24 @@ class ParkingExit(Scenario):
     def on_end(self) -> None:
         """Back to the normal spawn spacing."""
         self.ctx.sim.background.change_road_behavior(spawn_dist=15.0)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _parking_slot(town: Map, wp: Waypoint) -> bool:
+    """A parking lane on the right that extends 14 m back and forward."""
+    parking = wp.get_right_lane()
+    if parking is None or not parking.lane_type & LaneType.PARKING:
+        return False
+    for forward in (True, False):
+        end = move_along(parking, 14.0, forward=forward)
+        if end is None or not end.lane_type & LaneType.PARKING:
+            return False
+    return True
+
+
+register_layouts({
+    "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane, 40 m junction-free", any_lane,
+                          clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot),
+})  # fmt: skip

@@ -221,6 +221,7 @@ def _lane_test(scenario_type: str, spec: Layout, params: ParamSet) -> Callable[[
 def _straight_candidates(town: Map, scenario_type: str, spec: Layout, params: ParamSet) -> list[Candidate]:
     out = []
     lane_ok = _lane_test(scenario_type, spec, params)
+    sides = params.choices(scenario_type, "direction")
     ahead = _RunLength(lane_ok, True, RUN_CAP)
     behind = _RunLength(None, False, RUN_CAP)
     for wp in town.generate_waypoints(CANDIDATE_SPACING):
@@ -232,10 +233,21 @@ def _straight_candidates(town: Map, scenario_type: str, spec: Layout, params: Pa
             continue
         if spec.max_turn is not None and _turn_ahead(wp, spec.clear_after) > spec.max_turn:
             continue
-        if spec.extra is not None and not spec.extra(town, wp):
+        if spec.extra is not None and not _extra_holds(town, spec, wp, sides):
             continue
         out.append(Candidate(scenario_type, spec.name, wp))
     return out
+
+
+def _extra_holds(town: Map, spec: Layout, wp: Waypoint, sides: Sequence[str]) -> bool:
+    """``extra`` accepts the trigger, or (``extra_sides``) some drawn side holds: its lane test, and ``extra`` where
+    it checks that side."""
+    assert spec.extra is not None
+    if spec.extra_sides is None or spec.directions is None or not sides:
+        return spec.extra(town, wp)
+    return any(
+        spec.directions[side](wp) and (side not in spec.extra_sides or spec.extra(town, wp)) for side in sides
+    )
 
 
 def _junction_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Candidate]:
@@ -344,6 +356,14 @@ def _fits(
         return False
     if extra > 0 and spec.reach_behind > 0 and not _stretch_ok(trigger, behind, False, None):
         return False
+    if spec.extra_sides is not None and side is not None:
+        # the candidate may hold another side only: check this side's own tests at the trigger
+        if lane_ok is not None and not lane_ok(trigger):
+            return False
+        if side not in spec.extra_sides:
+            return True
+        if spec.extra is not None and not spec.extra(town, trigger):
+            return False
     if outside and spec.reach_ok is not None and spec.reach_param is not None:
         return spec.reach_ok(town, trigger, float(params[spec.reach_param]["value"]))
     return True

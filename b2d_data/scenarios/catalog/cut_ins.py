@@ -1,7 +1,8 @@
 """ParkingCutIn and StaticCutIn (§2.2 #3, #4): a car pulls into the ego's lane just in front of it.
 
 ParkingCutIn: a blocker car parked 28 m ahead and the cut-in car 35 m ahead, both in the ``direction``-side
-parking lane pushed toward its outer edge (hand brake). At the trigger the background clears 45 m ahead; when the
+lane (a parking lane on generated routes; any lane there, as LB2.0's ``get_right_lane``/``get_left_lane``) pushed
+toward its outer edge (hand brake). At the trigger the background clears 45 m ahead; when the
 ego's time to arrival at the cut-in car drops below 2.35 s (or within 10 m) it pulls out at 20 km/h into the ego's
 lane (stopping for vehicles in its way, ignoring lights) and drives 30 m; then both cars are removed. The
 background gets 20 m extra space from the pull-out to the scenario's end.
@@ -19,11 +20,12 @@ import logging
 
 import numpy as np
 
-from b2d_data.maps import LaneType, Waypoint
+from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
 from b2d_data.scenarios.catalog.layout import (
     STRAIGHTISH,
     Layout,
+    leftmost_beside_parking,
     multi_lane_left,
     multi_lane_right,
     parking_ahead,
@@ -93,10 +95,11 @@ class ParkingCutIn(Scenario):
         self.slots: list[tuple[Waypoint, Waypoint]] = []  # (driving lane, parking lane)
         for d in (self.blocker_distance, self.cut_in_distance):
             lane = move_along(self.trigger_waypoint, d)
+            # LB2.0 takes whatever lane lies to that side (``get_right_lane``/``get_left_lane``), parking or not
             parking = neighbour(lane, self.direction) if lane is not None and not lane.is_junction else None
-            if parking is None or not parking.lane_type & LaneType.PARKING:
+            if parking is None:
                 raise ScenarioSetupError(
-                    f"{self.name}: layout 'parking_lane' missing: no parking lane to the {self.direction} "
+                    f"{self.name}: layout 'parking_lane' missing: no lane to the {self.direction} "
                     f"{d:.0f} m after the trigger point"
                 )
             self.slots.append((lane, parking))
@@ -259,9 +262,11 @@ class StaticCutIn(Scenario):
 
 
 register_layouts({
-    "ParkingCutIn": Layout("parking_lane", "rightmost lane with a parking lane on the right 24–40 m ahead, 100 m "
-                           "junction-free", rightmost, clear_after=100.0, pre=(12.0, 14.0),
-                           extra=parking_ahead((24.0, 28.0, 32.0, 36.0, 40.0)), max_turn=STRAIGHTISH),
+    "ParkingCutIn": Layout("parking_lane", "rightmost lane with a parking lane on the right 24–40 m ahead (or "
+                           "leftmost with one on the left), 100 m junction-free", rightmost, clear_after=100.0,
+                           pre=(12.0, 14.0),
+                           extra=parking_ahead((24.0, 28.0, 32.0, 36.0, 40.0)), max_turn=STRAIGHTISH,
+                           directions={"right": rightmost, "left": leftmost_beside_parking}, extra_sides=("right",)),
     "StaticCutIn": Layout("multi_lane", "two same-direction lanes (ego on the left one), 130 m junction-free",
                           multi_lane_right, clear_after=130.0, max_turn=STRAIGHTISH,
                           directions={"right": multi_lane_right, "left": multi_lane_left}, reach_param="distance"),

@@ -77,6 +77,9 @@ class Layout:
     #: Straight layouts with a ``direction``: the lane test each drawn side needs instead of ``lane_ok`` (the
     #: candidate search takes any side the parameter set draws, each route checks its own side).
     directions: Mapping[str, Callable[[Waypoint], bool]] | None = None
+    #: Straight layouts with ``directions``: the sides that ``extra`` and ``reach_ok`` check (None: every side). The
+    #: other sides' lane tests carry their own side's check (e.g. a parking lane on the left at every point).
+    extra_sides: tuple[str, ...] | None = None
     #: Straight layouts: the parameter (m) placing the scenario's actors along the route. ``clear_before``,
     #: ``clear_after``, ``length`` and ``extra`` are sized for bench2drive220's values; a larger value lengthens
     #: the junction-free stretch ahead by ``reach_ahead`` m and behind by ``reach_behind`` m per metre beyond.
@@ -149,6 +152,15 @@ def rightmost(wp: Waypoint) -> bool:
 def any_lane(wp: Waypoint) -> bool:
     """Any driving lane."""
     return is_driving(wp)
+
+
+def leftmost_beside_parking(wp: Waypoint) -> bool:
+    """The leftmost driving lane of its direction with a parking lane on its left (a one-way road's left kerb:
+    ``direction`` left of the parking scenarios; a two-way road's left is the opposite lane)."""
+    if not is_driving(wp) or not is_outermost_driving(wp, "left"):
+        return False
+    parking = wp.get_left_lane()
+    return parking is not None and bool(parking.lane_type & LaneType.PARKING)
 
 
 def parking_ahead(distances: Sequence[float]) -> Callable[[Map, Waypoint], bool]:

@@ -252,3 +252,66 @@ def test_the_generated_town_has_no_left_places(town, scenario_type):
         # the training draw reaches beyond bench2drive220's two props
         models = {r.scenarios[0].parameter("blocker_model") for r in make_routes(town, scenario_type, 12, seed=5)}
         assert models - {"static.prop.advertisement", "static.prop.container"}
+
+
+# ------------------------------------------------------------------------------------------------ StaticCutIn (row 16)
+
+
+def test_static_cut_in_times_the_cut_in_to_the_ego_lane_point(one_way):
+    # cut_in_with_static_vehicle.py: _collision_wp is blocker_wp after the two back vehicles, i.e. the ego lane's
+    # point distance + 2 × 11 m on (reference_waypoint.next(distance), then next(vehicle_gap) per car): 80 + 22 =
+    # 102 m after the trigger on lane -2, not the side lane's point beside it
+    trigger, sc = _scenario(one_way, 1, -2, 100.0, "StaticCutIn", {"distance": "80", "direction": "left"})
+    tta = sc._tta.location
+    assert tta.distance_2d(trigger.transform.location) == pytest.approx(102.0, abs=0.05)
+    assert town_lane(one_way, tta) == (1, -2)
+
+
+def town_lane(town, location) -> tuple[int, int]:
+    wp = town.get_waypoint(location)
+    return wp.road_id, wp.lane_id
+
+
+def test_static_cut_in_changes_the_road_at_the_trigger_and_gives_it_back(town):
+    # cut_in_with_static_vehicle.py: after InTimeToArrivalToLocation, ChangeRoadBehavior(extra_space=30) and
+    # RemoveRoadLane(side_wp); at the end ChangeRoadBehavior(extra_space=0) and ReAddRoadLane(1 right / -1 left)
+    from b2d_data.format.rig import EGO_TYPE_ID
+    from b2d_data.format.transform import Vector3D
+    from b2d_data.scenarios.framework import ScenarioManager, ScenarioStatus
+    from b2d_data.sim.api import ActorSpec
+    from b2d_data.sim.builtin.world import BuiltinSimulator
+
+    route = make_routes(town, "StaticCutIn", 1, seed=0, params="bench2drive220")[0]
+    dense = DenseRoute.from_route(town, route)
+    seen: list[tuple[bool, float, int]] = []  # (the cut-in car is driving, extra space, lanes taken from the road)
+    with BuiltinSimulator(town, seed=0) as sim:
+        first = dense.waypoints[0].transform
+        ego = sim.spawn_actor(ActorSpec(EGO_TYPE_ID, role_name="hero"), Transform(
+            Location(first.location.x, first.location.y, first.location.z + 0.5), first.rotation))  # fmt: skip
+        snap = sim.tick()
+        bg = sim.background
+        bg.start(ego, list(dense.waypoints))
+        manager = ScenarioManager(lambda cfg: ScenarioContext(sim, town, dense, cfg, np.random.default_rng(1), ego),
+                                  route.scenarios)  # fmt: skip
+        s_along, index = 0.0, 0
+        for _ in range(1600):
+            index = dense.closest_index(snap.actors[ego].location, max(0, index - 2), 10)
+            manager.tick(snap, index)
+            scenario = manager.scenarios[0]
+            if scenario in manager.active:
+                seen.append((scenario._agent is not None, bg.settings.extra_space, len(bg._removed_lanes)))
+            if all(v is not None for v in manager.statuses.values()):
+                break
+            # a scripted ego at 8 m/s along the route (its velocity set for the time-to-arrival trigger)
+            s_along = min(s_along + 0.4, dense.total_length)
+            k = min(int(np.searchsorted(dense.cumulative_length, s_along)), len(dense) - 1)
+            t = dense.waypoints[k].transform
+            sim.set_transform(ego, Transform(Location(t.location.x, t.location.y, t.location.z + 0.1), t.rotation))
+            f = t.get_forward_vector()
+            sim.set_target_velocity(ego, Vector3D(f.x * 8.0, f.y * 8.0, 0.0))
+            snap = sim.tick()
+        manager.cleanup(snap)
+        assert list(manager.statuses.values()) == [ScenarioStatus.SUCCESS]
+        assert {(extra, removed) for driving, extra, removed in seen if not driving} == {(0.0, 0)}
+        assert {(extra, removed) for driving, extra, removed in seen if driving} == {(30.0, 1)}
+        assert bg.settings.extra_space == 0.0 and not bg._removed_lanes  # given back at the end

@@ -8,10 +8,11 @@ lane (stopping for vehicles in its way, ignoring lights) and drives 30 m; then b
 background gets 20 m extra space from the pull-out to the scenario's end.
 
 StaticCutIn: a queue of six stopped cars 11 m apart in the ``direction``-side lane from ``distance`` m ahead, the
-third one the cut-in car (hidden until the trigger, when the background clears distance + 66 m ahead and leaves
-that lane). When the ego's time to arrival at the cut-in car drops below 2.7 s (or within 15 m) it pulls into the
-ego's lane in 3 s (within 9 m, so as to clear the queued car ahead of it), drives 2 s more at the ego's speed, then
-follows the lane for 70 m at 60 km/h. The background gets 30 m extra space.
+third one the cut-in car (hidden until the trigger, when the background clears distance + 66 m ahead). When the
+ego's time to arrival at the ego-lane point abreast of the cut-in car drops below 2.7 s (or within 15 m), the
+background gets 30 m extra space and leaves the side lane, and the car pulls into the ego's lane in 3 s (within 9
+m, so as to clear the queued car ahead of it), drives 2 s more at the ego's speed, then follows the lane for 70 m
+at 60 km/h. At the end the extra space goes back to 0 and the side lane opens again.
 """
 
 from __future__ import annotations
@@ -208,7 +209,9 @@ class StaticCutIn(Scenario):
         self.ego_lane = ego_lane
         self.cut_in_lateral = lateral_offset(ego_lane, cut_in_spot)
         self.models = [random_parked_car(ctx.rng) for _ in self.spots]
-        self._tta = TimeToArrivalTrigger(cut_in_spot.transform.location, self.sync_time, self.min_trigger_distance)
+        # LB2.0 (cut_in_with_static_vehicle.py) times the cut-in to _collision_wp: the ego lane's point abreast of
+        # the cut-in car
+        self._tta = TimeToArrivalTrigger(ego_lane.transform.location, self.sync_time, self.min_trigger_distance)
         self.cars: list[int] = []
         self._agent: ConstantVelocityAgent | None = None
         self._t0: float | None = None
@@ -221,10 +224,9 @@ class StaticCutIn(Scenario):
         return self.cars[self.queue_before] if len(self.cars) > self.queue_before else None
 
     def start(self, snapshot: Snapshot) -> None:
-        """Clear the road ahead, take the side lane from the background, show the queue."""
+        """Clear the road ahead, show the queue."""
         bg = self.ctx.sim.background
         bg.leave_space_in_front(self.distance + self.clear_extra)
-        bg.remove_road_lane(self.side_lane)
         for wp, model in zip(self.spots, self.models):
             transforms = [offset_transform(wp, forward=f, z=0.05) for f in (0.0, 1.0, -1.0)]
             car = self.spawn(model, transforms[0], retries=transforms[1:])
@@ -239,6 +241,10 @@ class StaticCutIn(Scenario):
         if self._agent is None:
             if not self._tta.check(ego):
                 return ScenarioStatus.RUNNING
+            # LB2.0 at the trigger: 30 m extra space, the side lane (at the second queued car) taken from the road
+            bg = self.ctx.sim.background
+            bg.change_road_behavior(extra_space=self.extra_space)
+            bg.remove_road_lane(self.spots[1])
             self._ego_speed = max(ego.speed(), 3.0)
             total = self.merge_length + self._ego_speed * self.keep_time + self.final_distance
             track = merge_track(self.ego_lane, self.cut_in_lateral, self.merge_length, total, ease_in=False)
@@ -253,9 +259,16 @@ class StaticCutIn(Scenario):
             self._phase, self._agent.speed = 1, self._ego_speed
         if self._phase == 1 and elapsed >= self.change_time + self.keep_time:
             self._phase, self._agent.speed = 2, self.final_speed
-            self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
         self._agent.run_step(snapshot)
         return ScenarioStatus.SUCCESS if self._agent.done else ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """The road's extra space back to 0 and the side lane open again (LB2.0's ChangeRoadBehavior(extra_space=0)
+        and ReAddRoadLane at the end)."""
+        if self._agent is not None:
+            bg = self.ctx.sim.background
+            bg.change_road_behavior(extra_space=0.0)
+            bg.readd_road_lane(1 if self.direction == "right" else -1)
 
 
 # ------------------------------------------------------------------------------------------------ placement

@@ -197,6 +197,7 @@ class ExpertConfig:
     invading_turn_end: float = 10.0  # after the last cone
     invading_turn_search_offset: float = 10.0  # the last cone is searched from 10 m after the first
     invading_turn_fence_margin: float = 0.3
+    invading_turn_extra_shift: float = 0.0  # m added to the scenario's offset (PDM-Lite: none)
     # Not PDM-Lite's: the shift starts where the ego is when the cones appear (the trigger), not 15 m before the
     # first cone. The invading flow drives from its source all the way back to the trigger; with the training
     # ranges (distance up to 200 m, cones over distance / 2) the ego meets it 50-100 m before the cones, where an
@@ -232,7 +233,7 @@ class ExpertConfig:
 
     @classmethod
     def for_builtin(cls) -> ExpertConfig:
-        """The config of the expert on the builtin simulator: PDM-Lite's, with three departures for its scenes.
+        """The config of the expert on the builtin simulator: PDM-Lite's, with four departures for its scenes.
 
         The throttle regression is PDM-Lite's own (see :data:`CARLA_LINEAR_REGRESSION_PARAMS`).
 
@@ -244,7 +245,11 @@ class ExpertConfig:
 
         InvadingTurn keeps the full offset next to a shoulder: PDM-Lite takes 0.3 m off it for a fence that may stand
         there, which leaves ~0 of the 0.18–0.34 m beside the generated streets' gutter (a 0.3–0.5 m shoulder lane
-        with no fence), and the invading cars then touch the ego.
+        with no fence), and the invading cars then touch the ego. It also shifts 0.3 m further than the offset:
+        the invading cars reach offset + 0.3 m into the ego's lane (their edge, the flow keeping 0.7 m of a ~2 m
+        car in its own lane), and in a bend the ego tracks its shifted route ~0.1 m short on the inside while the
+        cars' corners sweep across the centre line: with the offset alone two invading cars touched the ego in
+        bends (routes 29160004 on Town101 and 29160005 on Town100, seed 29).
         """
         extra = {**cls().extra_length_two_ways, **BUILTIN_EXTRA_LENGTH_TWO_WAYS}
-        return cls(extra_length_two_ways=extra, invading_turn_fence_margin=0.0)
+        return cls(extra_length_two_ways=extra, invading_turn_fence_margin=0.0, invading_turn_extra_shift=0.3)

@@ -117,7 +117,7 @@ def shift_route_for_invading_turn(route: DenseRoute, first_location: np.ndarray,
     """Offset the route to the right by |offset| from 15 m before the first cone to 10 m after the last (§1.9).
 
     With ``invading_turn_shift_from_trigger`` the shift starts at the ego's route point instead when that comes
-    first (see the config). Next to a shoulder the offset is reduced by 0.3 m and capped at the shoulder's width (a fence may stand
+    first (see the config), and ``invading_turn_extra_shift`` is added to the offset. Next to a shoulder the offset is reduced by 0.3 m and capped at the shoulder's width (a fence may stand
     there). Returns the shifted index range.
     """
     from b2d_data.maps import LaneType
@@ -135,9 +135,9 @@ def shift_route_for_invading_turn(route: DenseRoute, first_location: np.ndarray,
         if norm < 1e-9:
             continue
         right = np.array([-d[1], d[0]]) / norm  # CARLA's frame: +90° (clockwise seen from above) is right
-        amount = offset
+        amount = abs(offset) + cfg.invading_turn_extra_shift
         right_lane = route.waypoint(idx).get_right_lane()
         if right_lane is not None and right_lane.lane_type == LaneType.SHOULDER:
-            amount = min(offset - math.copysign(cfg.invading_turn_fence_margin, offset), right_lane.lane_width)
+            amount = min(amount - cfg.invading_turn_fence_margin, right_lane.lane_width)
         route.points[idx, :2] += right * abs(amount)
     return start, end

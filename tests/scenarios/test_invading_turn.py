@@ -101,7 +101,7 @@ def _started_invading_turn(town, sim):
 def test_only_invading_turn_holds_its_flow_and_it_ends_in_front_of_the_source_within_50_m(town):
     with BuiltinSimulator(town, seed=0) as sim:
         manager, scenario, ego, index = _started_invading_turn(town, sim)
-        assert scenario._flow is not None and scenario._flow.hero_clearance == 15.0
+        assert scenario.flow is not None and scenario.flow.hero_clearance == 15.0
         # every other flow is built without it, and the default keeps LB2.0's rule
         assert inspect.signature(ActorFlow).parameters["hero_clearance"].default is None
         source = scenario.source_reference

@@ -18,7 +18,7 @@ from typing import ClassVar
 
 from b2d_data.format.transform import Location
 from b2d_data.maps import LaneType, Map, Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.junctions import (
     JunctionScenario,
     LightSchedule,
@@ -28,10 +28,10 @@ from b2d_data.scenarios.catalog.junctions import (
 )
 from b2d_data.scenarios.catalog.layout import Layout, register_layouts, xml_location
 from b2d_data.scenarios.catalog.road_geometry import JunctionLane, entries_from, find_side_lane, lane_walk
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import ScenarioHint, Snapshot
+from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -72,18 +72,19 @@ def bike_lane_at(town: Map, loc: Location) -> Waypoint | None:
 
 
 @register
-class CrossingBicycleFlow(JunctionScenario):
+class CrossingBicycleFlow(FlowScenario, JunctionScenario):
     """Turn across a flow of bicycles riding straight through the junction on a bike lane (§2.2 #36)."""
 
     xml_type = "CrossingBicycleFlow"
     green_light_delay: ClassVar[float] = 5.0
     #: LB2.0's default ``source_dist_interval`` (cross_bicycle_flow.py); generated routes always set it.
     default_interval: ClassVar[tuple[float, float]] = (20.0, 50.0)
+    # A deviation from LB2.0: no new route vehicles ahead of the ego while the bicycles ride. One spawned after the
+    # clearing that turns across the flow waits for a gap the dense flow never leaves, and the ego behind it.
+    route_sources_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 10.0)
-        self.interval = ctx.interval("source_dist_interval", self.default_interval)
         x, y = ctx.config.parameter("start_actor_flow", "x"), ctx.config.parameter("start_actor_flow", "y")
         if x is None or y is None:
             raise ScenarioSetupError(f"{self.name}: parameter <start_actor_flow x=... y=...> missing")
@@ -100,25 +101,20 @@ class CrossingBicycleFlow(JunctionScenario):
             self.path = bicycle_path(source, self.junction.id)
         except ScenarioSetupError as exc:
             raise ScenarioSetupError(f"{self.name}: layout 'bike_lane' missing: {exc}") from None
-        self.flow: ActorFlow | None = None
         self.lights: LightSchedule | None = None
         self._left = WaitEndIntersection(ctx.map, self.junction.id)
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Clear the junction, stop its entries, start the pre-populated bicycle flow and the lights."""
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Clear the junction and stop its entries (the route sources stop too, see ``route_sources_off``)."""
         self.ctx.sim.background.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=[], remove_exits=[], stop_entries=True,
             extend_road_exit=0.0,
         )  # fmt: skip
-        # A deviation from LB2.0: no new route vehicles ahead of the ego while the bicycles ride. One spawned after
-        # the clearing that turns across the flow waits for a gap the dense flow never leaves, and the ego behind it.
-        self.ctx.sim.background.switch_route_sources(False)
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """The pre-populated bicycle flow and the lights."""
         bikes = blueprints.filter_ids("vehicle.*", base_type="bicycle")
-        self.flow = ActorFlow(
-            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True,
-            blueprint_ids=bikes, yield_after_collision=False,
-        )  # fmt: skip
-        self.flow.start()
+        self.add_flow(self.path, initial_actors=True, blueprint_ids=bikes, yield_after_collision=False)
         lights = self.junction_lights(snapshot)
         if lights:
             ego_lights = lights_of_lane(lights, self.ego_entry)
@@ -127,26 +123,18 @@ class CrossingBicycleFlow(JunctionScenario):
             ])  # fmt: skip
             self.lights.update(snapshot)
 
-    def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
-
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Ride the bicycles; SUCCESS once the ego left the junction."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
+    def step(self, snapshot: Snapshot) -> None:
+        """Run the light schedule."""
         if self.lights is not None:
             self.lights.update(snapshot)
-        ego = self.ctx.ego(snapshot)
-        if ego is not None and self._left.check(ego):
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
 
-    def on_end(self) -> None:
-        """Remove the bicycles, release the lights and switch the route sources back on."""
-        if self.flow is not None:
-            self.flow.stop()
-            self.ctx.sim.background.switch_route_sources(True)
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego has left the junction."""
+        ego = self.ctx.ego(snapshot)
+        return ego is not None and self._left.check(ego)
+
+    def restore_background(self) -> None:
+        """Release the lights."""
         if self.lights is not None:
             self.lights.release()
 

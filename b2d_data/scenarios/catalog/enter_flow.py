@@ -14,7 +14,7 @@ from typing import ClassVar
 
 from b2d_data.format.transform import Location
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
 from b2d_data.scenarios.catalog.layout import Layout, register_layouts, xml_location
 from b2d_data.scenarios.catalog.road_geometry import (
@@ -25,8 +25,8 @@ from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
     same_direction_lanes,
 )
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
-from b2d_data.sim.api import ScenarioHint, Snapshot
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
+from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +47,7 @@ def flow_lanes_path(ctx: ScenarioContext, source: Waypoint, sink: Waypoint) -> l
 
 
 @register
-class EnterActorFlow(JunctionScenario):
+class EnterActorFlow(FlowScenario, JunctionScenario):
     """Merge into a dense flow on the road entered through the junction (§2.2 #29)."""
 
     xml_type = "EnterActorFlow"
@@ -55,11 +55,10 @@ class EnterActorFlow(JunctionScenario):
     #: bench2drive220, routes_training and generated routes always set both.
     default_interval: ClassVar[tuple[float, float]] = (20.0, 50.0)
     default_flow_speed: ClassVar[float] = 10.0
+    route_sources_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", self.default_flow_speed)
-        self.interval = ctx.interval("source_dist_interval", self.default_interval)
         source = self._lane_point("start_actor_flow")
         sink = self._lane_point("end_actor_flow")
         # pair the lanes from the road centre outwards, as the two ends may have different lane ids
@@ -73,8 +72,6 @@ class EnterActorFlow(JunctionScenario):
         self.after_junction = next(
             (float(k) for k, wp in enumerate(after) if wp.transform.location.distance_2d(target) < 4.0), 50.0
         )
-        self.flows: list[ActorFlow] = []
-        self._done = False
 
     def _lane_point(self, tag: str) -> Waypoint:
         coords = [self.ctx.config.parameter(tag, axis) for axis in ("x", "y", "z")]
@@ -89,40 +86,22 @@ class EnterActorFlow(JunctionScenario):
             raise ScenarioSetupError(f"{self.name}: <{tag}> at ({loc.x:.1f}, {loc.y:.1f}) is not on a driving lane")
         return wp
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Prepare the background and start one pre-populated flow per lane."""
-        bg = self.ctx.sim.background
-        bg.handle_junction_scenario(
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Clear the junction, remove the flows' entry lanes, keep the road after the junction free."""
+        self.ctx.sim.background.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=self.sources, remove_exits=[],
             stop_entries=False, extend_road_exit=self.after_junction + 20.0,
         )  # fmt: skip
-        bg.switch_route_sources(False)
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """One pre-populated flow per lane."""
         for path in self.paths:
-            flow = ActorFlow(self.ctx.sim, self.ctx.rng, path, self.flow_speed, self.interval, initial_actors=True)
-            flow.start()
-            self.flows.append(flow)
+            self.add_flow(path, initial_actors=True)
 
-    def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
-
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flows; SUCCESS once the ego is within 2 m of a sink."""
-        for flow in self.flows:
-            flow.update(snapshot)
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego is within 2 m of a sink."""
         ego = self.ctx.ego(snapshot)
-        if ego is None:
-            return ScenarioStatus.RUNNING
-        if any(ego.location.distance_2d(s.transform.location) < SINK_REACHED for s in self.sinks):
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
-
-    def on_end(self) -> None:
-        """Remove the flows and switch the route sources back on."""
-        for flow in self.flows:
-            flow.stop()
-        if self.flows:
-            self.ctx.sim.background.switch_route_sources(True)
+        return ego is not None and any(ego.location.distance_2d(s.transform.location) < SINK_REACHED for s in self.sinks)
 
 
 # ------------------------------------------------------------------------------------------------ placement

@@ -8,6 +8,10 @@ in their path; see :meth:`ActorFlow.update`. Otherwise they are lane-following a
 for vehicles ahead (the opposite traffic of the two-way obstacle scenarios). A new vehicle appears at the source
 once the previous one has driven a gap drawn uniformly from the interval; vehicles are removed within
 ``sink_distance`` of the sink.
+
+:class:`FlowScenario` is the shape every flow type shares: ``flow_speed`` and ``source_dist_interval`` read from the
+XML, the background prepared and paused at the trigger, the flows driven every tick until the type's end condition,
+then removed and the background given back.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -23,9 +28,9 @@ from b2d_data.format.transform import Vector3D
 from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.road_geometry import lane_walk, offset_transform
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, LaneFollowingAgent, PathTrack
-from b2d_data.scenarios.framework import SCENARIO_ROLE, ScenarioSetupError
+from b2d_data.scenarios.framework import SCENARIO_ROLE, Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import ActorSpec, Simulator, SimulatorError, Snapshot, VehicleControl
+from b2d_data.sim.api import ActorSpec, ScenarioHint, Simulator, SimulatorError, Snapshot, VehicleControl
 
 log = logging.getLogger(__name__)
 
@@ -243,3 +248,113 @@ class ActorFlow:
         self.active = False
         for veh in list(self.vehicles):
             self._destroy(veh)
+
+
+class FlowScenario(Scenario):
+    """Base of the flow types: one or more :class:`ActorFlow` from a source to a sink around the ego's way.
+
+    The shape (LB2.0's ``_create_behavior`` of every ActorFlow type): at the trigger the background is prepared
+    (:meth:`prepare_background`: HandleJunctionScenario, RemoveRoadLane), the route sources and/or the opposite
+    traffic are switched off (``route_sources_off``, ``opposite_off``), the flows start (:meth:`start_flows`); every
+    tick the flows drive, then :meth:`step` and the end condition :meth:`finished`; at the end the flows are removed,
+    :meth:`restore_background` runs and what was switched off is switched back on. Subclasses may put the flow base
+    before another scenario base (``class T(FlowScenario, JunctionScenario)``).
+    """
+
+    #: The XML's ``flow_speed`` (m/s) when it gives none (LB2.0's ``get_value_parameter`` default of the type).
+    default_flow_speed: ClassVar[float] = 10.0
+    #: The XML's ``source_dist_interval`` (m) when it gives none.
+    default_interval: ClassVar[tuple[float, float]] = (20.0, 50.0)
+    #: LB2.0's ``SwitchRouteSources(False)`` before the flows and ``(True)`` after them.
+    route_sources_off: ClassVar[bool] = False
+    #: LB2.0's ``ChangeOppositeBehavior(active=False)`` before the flows and ``(active=True)`` after them.
+    opposite_off: ClassVar[bool] = False
+
+    def __init__(self, ctx: ScenarioContext) -> None:
+        super().__init__(ctx)
+        self.flow_speed = ctx.value("flow_speed", self.default_flow_speed)
+        self.interval = ctx.interval("source_dist_interval", self.default_interval)
+        self.flows: list[ActorFlow] = []
+        self._flows_started = False
+
+    @property
+    def flow(self) -> ActorFlow | None:
+        """The first flow (the only one of most types), None before the trigger."""
+        return self.flows[0] if self.flows else None
+
+    # -- hooks ----------------------------------------------------------------------------------------------------
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Background hooks before the flows start (HandleJunctionScenario, RemoveRoadLane)."""
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """Create and start the flows (:meth:`add_flow`) and whatever goes with them (lights, cones)."""
+
+    def step(self, snapshot: Snapshot) -> None:
+        """Per-tick work after the flows drove (lights, lane clearing)."""
+
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The type's end condition (SUCCESS once true)."""
+        return False
+
+    def restore_background(self) -> None:
+        """Undo :meth:`prepare_background` and release what :meth:`start_flows` held (lights); only after a start."""
+
+    # -- the shared shape -----------------------------------------------------------------------------------------
+    def add_flow(
+        self,
+        path: list[Waypoint],
+        speed: float | None = None,
+        interval: tuple[float, float] | None = None,
+        **options: object,
+    ) -> ActorFlow:
+        """Start an :class:`ActorFlow` along ``path`` at ``speed`` (default ``flow_speed``) spawning every
+        ``interval`` (default the XML's); ``options`` are ActorFlow's keyword arguments."""
+        flow = ActorFlow(
+            self.ctx.sim,
+            self.ctx.rng,
+            path,
+            self.flow_speed if speed is None else speed,
+            self.interval if interval is None else interval,
+            **options,  # type: ignore[arg-type]
+        )
+        flow.start()
+        self.flows.append(flow)
+        return flow
+
+    def start(self, snapshot: Snapshot) -> None:
+        """Prepare the background, switch off the route sources / opposite traffic, start the flows."""
+        self.prepare_background(snapshot)
+        bg = self.ctx.sim.background
+        if self.route_sources_off:
+            bg.switch_route_sources(False)
+        if self.opposite_off:
+            bg.change_opposite_behavior(active=False)
+        self._flows_started = True
+        self.start_flows(snapshot)
+
+    def update(self, snapshot: Snapshot) -> ScenarioStatus:
+        """Drive the flows, then :meth:`step`; SUCCESS once :meth:`finished`."""
+        for flow in self.flows:
+            flow.update(snapshot)
+        self.step(snapshot)
+        return ScenarioStatus.SUCCESS if self.finished(snapshot) else ScenarioStatus.RUNNING
+
+    def hint(self) -> ScenarioHint | None:
+        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
+        return ScenarioHint(self.xml_type, None, None)
+
+    def on_end(self) -> None:
+        """Remove the flows, undo the background hooks, switch back on what the start switched off."""
+        for flow in self.flows:
+            flow.stop()
+        if not (self._flows_started or self.flows):  # never started (a subclass's own start() fills flows)
+            return
+        self.restore_background()
+        bg = self.ctx.sim.background
+        if self.route_sources_off:
+            bg.switch_route_sources(True)
+        if self.opposite_off:
+            try:
+                bg.change_opposite_behavior(active=True)
+            except SimulatorError as exc:
+                log.warning("%s: could not restore opposite traffic: %s", self.name, exc)

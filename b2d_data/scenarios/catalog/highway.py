@@ -18,19 +18,19 @@ import numpy as np
 
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.interurban import flow_lane_path, location_parameter
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
 from b2d_data.scenarios.catalog.road_geometry import (
     is_driving,
     lane_walk,
+    move_along,
     same_direction_driving_neighbour,
     same_direction_lanes,
 )
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
 from b2d_data.scenarios.framework import (
     SCENARIO_ROLE,
-    Scenario,
     ScenarioContext,
     ScenarioSetupError,
     ScenarioStatus,
@@ -184,54 +184,69 @@ class HighwayCutIn(JunctionScenario):
         log.debug("%s: cut-in at %.1f m/s", self.name, self.cut_in_speed)
 
 
-class _SlowTrafficMerge(Scenario):
+class _SlowTrafficMerge(FlowScenario):
     """Common part of the two MergerIntoSlowTraffic types: a slow, pre-populated flow from ``start_actor_flow`` to
     ``end_actor_flow`` on the lane the ego merges into; SUCCESS once the ego is within 2 m of its sink.
 
     The expert learns the sink from the hint and merges with gap acceptance (:mod:`b2d_data.expert.merging`).
     """
 
-    #: V2 also removes the lanes after the junction from background traffic.
-    remove_exit_lanes: ClassVar[bool] = False
+    #: V2 (LB2.0's MergerIntoSlowTrafficV2) leaves the junction as it is but removes the lanes 10 m after the
+    #: route's junction exit from background traffic.
+    v2: ClassVar[bool] = False
+    route_sources_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 10.0)
-        self.interval = ctx.interval("source_dist_interval", (20.0, 50.0))
         self.path: list[Waypoint] = flow_lane_path(ctx)
         sink = self.path[-1].transform.location
         closest = ctx.route.closest_index(sink)
         # a route cut short of the sink (a short clip) runs the flow until the route ends
         reaches = ctx.route.waypoints[closest].transform.location.distance_2d(sink) <= 3.0
         self.end_index: int | None = closest if reaches else None
-        self.flow: ActorFlow | None = None
-
-    def start(self, snapshot: Snapshot) -> None:
-        """Clear the merge junction, remove the flow's lanes from background traffic, start the flow."""
-        bg = self.ctx.sim.background
         inside = [k for k, wp in enumerate(self.path) if wp.is_junction]
-        after = float(len(self.path) - 1 - inside[-1]) if inside else 0.0  # metres of flow past the junction
-        bg.handle_junction_scenario(
-            clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.path[0]),
-            remove_exits=same_direction_lanes(self.path[-1]) if self.remove_exit_lanes else [], stop_entries=False,
-            extend_road_exit=after + 20.0,
-        )  # fmt: skip
-        bg.switch_route_sources(False)
-        self.flow = ActorFlow(
-            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=True
-        )
-        self.flow.start()
+        #: metres of flow past the junction
+        self.after_junction = float(len(self.path) - 1 - inside[-1]) if inside else 0.0
+        self.exit_lanes: list[Waypoint] = self._exit_lanes() if self.v2 else []
 
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS once the ego is within 2 m of its sink."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
+    def _exit_lanes(self) -> list[Waypoint]:
+        """V2: the same-direction lanes 10 m after the route leaves its first junction past the trigger (LB2.0's
+        ``generate_target_waypoint_in_route`` then ``next(10)``); none (logged) when the route meets no junction."""
+        waypoints = self.ctx.route.waypoints
+        entry = next((k for k in range(self.trigger_index, len(waypoints)) if waypoints[k].is_junction), None)
+        leave = None
+        if entry is not None:
+            leave = next((k for k in range(entry, len(waypoints)) if not waypoints[k].is_junction), None)
+        after = move_along(waypoints[leave], 10.0) if leave is not None else None
+        if after is None:
+            log.warning("%s: no route lane 10 m after the merge junction; no exit lanes removed", self.name)
+            return []
+        return same_direction_lanes(after)
+
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """LB2.0's HandleJunctionScenario at the trigger (the route sources stop too).
+
+        V1 clears the junction and the ego's entry, removes the flow's source lane and keeps the road free for the
+        flow's length past the junction + 20 m. V2 clears the ego's entry only, removes the source lane and the
+        lanes after the exit. LB2.0's V2 keeps the road free (the same length) only once the ego has left the
+        junction, with a second HandleJunctionScenario; ours asks at the trigger: the space only holds back road
+        spawns, and those are off (SwitchRouteSources) until the scenario ends, so it acts from the same moment.
+        """
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=not self.v2, clear_ego_entry=True, remove_entries=[self.path[0]],
+            remove_exits=self.exit_lanes, stop_entries=False, extend_road_exit=self.after_junction + 20.0,
+        )  # fmt: skip
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """The pre-populated flow."""
+        self.add_flow(self.path, initial_actors=True)
+
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego is within 2 m of the sink along the route (never when the route stops short of it)."""
         if self.end_index is None:
-            return ScenarioStatus.RUNNING
+            return False
         s = self.ctx.route.cumulative_length
-        if float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0:
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
+        return float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0
 
     def hint(self) -> ScenarioHint | None:
         """While the flow runs: the sink the ego merges towards."""
@@ -239,12 +254,6 @@ class _SlowTrafficMerge(Scenario):
             return None
         sink = self.path[-1].transform.location
         return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
-
-    def on_end(self) -> None:
-        """Stop the flow and switch the route sources back on."""
-        if self.flow is not None:
-            self.flow.stop()
-            self.ctx.sim.background.switch_route_sources(True)
 
 
 @register
@@ -259,4 +268,4 @@ class MergerIntoSlowTrafficV2(_SlowTrafficMerge):
     """Merge from a dedicated entry into a slow single-lane flow, Town06-style (§2.2 #32)."""
 
     xml_type = "MergerIntoSlowTrafficV2"
-    remove_exit_lanes = True
+    v2 = True

@@ -15,7 +15,7 @@ import logging
 import numpy as np
 
 from b2d_data.maps import Map, Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.highway_placement import HIGHWAY_MIN_LIMIT, MERGE_MAX_ANGLE
 from b2d_data.scenarios.catalog.interurban import location_parameter
 from b2d_data.scenarios.catalog.junctions import walk_back_to_source
@@ -28,9 +28,9 @@ from b2d_data.scenarios.catalog.road_geometry import (
     same_direction_driving_neighbour,
     same_lane,
 )
-from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
-from b2d_data.sim.api import ScenarioHint, Snapshot
+from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -66,15 +66,13 @@ def lane_path_to(source: Waypoint, sink: Waypoint, max_length: float = 600.0) ->
 
 
 @register
-class HighwayExit(Scenario):
+class HighwayExit(FlowScenario):
     """Cut across a flow on the right to take a highway exit (§2.2 #30)."""
 
     xml_type = "HighwayExit"
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 10.0)
-        self.interval = ctx.interval("source_dist_interval", (20.0, 50.0))
         source = ctx.map.get_waypoint(location_parameter(ctx, "start_actor_flow"))
         sink = ctx.map.get_waypoint(location_parameter(ctx, "end_actor_flow"))
         if source is None or sink is None:
@@ -122,22 +120,22 @@ class HighwayExit(Scenario):
             (wp.road_id, wp.lane_id) for wp in self.path
         }:
             self.exit_lane = None
-        self.flow: ActorFlow | None = None
         self._flow_keys: set[tuple[int, int]] = set()
         self._ticks = 0
         self._left = WaitEndIntersection(ctx.map, self.junction_id)
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Remove the flow's lane from background traffic and start the pre-populated flow."""
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Remove the flow's lane (and a deceleration lane to the exit) from background traffic."""
         self._flow_keys = {(wp.road_id, wp.lane_id) for wp in self.path if not wp.is_junction}
         self.ctx.sim.background.remove_road_lane(self.path[0])
         if self.exit_lane is not None:
             # a deceleration lane to the exit: background cars there would stop ahead of the ego and close it
             self.ctx.sim.background.remove_road_lane(self.exit_lane)
         self._clear_flow_lane(snapshot)
-        self.flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval,
-                              initial_actors=True)  # fmt: skip
-        self.flow.start()
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """The pre-populated flow."""
+        self.add_flow(self.path, initial_actors=True)
 
     def _clear_flow_lane(self, snapshot: Snapshot) -> None:
         """RemoveRoadLane on the flow's lane beside the ego, while the ego is not on it yet.
@@ -153,27 +151,16 @@ class HighwayExit(Scenario):
         if beside.road_id == here.road_id and not beside.is_junction:
             self.ctx.sim.background.remove_road_lane(beside)
 
-    def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
+    def step(self, snapshot: Snapshot) -> None:
+        """Keep the flow's lane free of background traffic."""
+        self._ticks += 1
+        if self._ticks % CLEAR_EVERY == 0:
+            self._clear_flow_lane(snapshot)
 
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow and keep its lane free of background traffic; SUCCESS once the ego has left the exit
-        junction."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
-            self._ticks += 1
-            if self._ticks % CLEAR_EVERY == 0:
-                self._clear_flow_lane(snapshot)
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego has left the exit junction."""
         ego = self.ctx.ego(snapshot)
-        if ego is not None and self._left.check(ego):
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
-
-    def on_end(self) -> None:
-        """Remove the flow."""
-        if self.flow is not None:
-            self.flow.stop()
+        return ego is not None and self._left.check(ego)
 
 
 # ------------------------------------------------------------------------------------------------ placement

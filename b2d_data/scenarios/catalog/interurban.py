@@ -1,15 +1,17 @@
 """Interurban junctions with fast actor flows (§2.2 #33, #34): InterurbanActorFlow, InterurbanAdvancedActorFlow.
 
-InterurbanActorFlow: the ego leaves an interurban road by turning left at an unsignalised junction, across a constant-speed flow on the
-opposite lane that runs from the XML's ``start_actor_flow`` to ``end_actor_flow`` (not pre-populated). The ego's
-entry, the flow's entry and the other entries are removed from background traffic and the opposite background is
-paused. The scenario ends when the ego has left the junction, or after 240 s.
+InterurbanActorFlow: the ego leaves an interurban road by turning left at an unsignalised junction, across a
+constant-speed flow on the opposite lane that runs from the XML's ``start_actor_flow`` to ``end_actor_flow`` (not
+pre-populated). As LB2.0, three entries are removed from background traffic: the ego's, the one from the road the ego
+turns into and the flow's source lane; the opposite background is paused. The scenario ends when the ego has left the
+junction, or after 240 s.
 
 InterurbanAdvancedActorFlow: the ego enters an interurban road by turning left from a side road. Flow 1 runs from
 ``start_actor_flow`` to ``end_actor_flow`` across the ego's path; flow 2 runs the other way on the lane left of flow
-1's sink to the lane left of its source, the lane the ego merges into. Both at ``flow_speed``. Every other junction
-entry and exit is removed from background traffic, the route sources are off and the opposite traffic paused; the
-scenario ends when the ego passes flow 2's sink, or after 240 s.
+1's sink to the lane left of its source, the lane the ego merges into. Both at ``flow_speed``. Every junction entry
+and exit but the ego's own is removed from background traffic, the road after the junction kept free for flow 2's
+length past it + 20 m, the route sources are off and the opposite traffic paused; the scenario ends when the ego
+passes flow 2's sink, or after 240 s.
 """
 
 from __future__ import annotations
@@ -18,20 +20,13 @@ import logging
 
 from b2d_data.format.transform import Location
 from b2d_data.maps import Map, Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
+from b2d_data.scenarios.catalog.flows import FlowScenario, flow_path
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
 from b2d_data.scenarios.catalog.layout import CHECK_STEP, Layout, register_layouts, signal_lanes, xml_location
-from b2d_data.scenarios.catalog.road_geometry import (
-    JunctionLane,
-    connection,
-    entries_from,
-    is_driving,
-    move_along,
-    same_direction_lanes,
-)
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.catalog.road_geometry import JunctionLane, connection, entries_from, is_driving, move_along
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
-from b2d_data.sim.api import ScenarioHint, Snapshot
+from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -67,55 +62,51 @@ def flow_lane_path(ctx: ScenarioContext, start_tag: str = "start_actor_flow", en
 
 
 @register
-class InterurbanActorFlow(JunctionScenario):
+class InterurbanActorFlow(FlowScenario, JunctionScenario):
     """Left turn off an interurban road across a fast oncoming flow (§2.2 #33)."""
 
     xml_type = "InterurbanActorFlow"
     required_turn = ("left",)
+    opposite_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 10.0)
-        self.interval = ctx.interval("source_dist_interval", (20.0, 50.0))
         self.path: list[Waypoint] = flow_lane_path(ctx)
         if not any(wp.is_junction and wp.junction_id == self.junction.id for wp in self.path):
             raise ScenarioSetupError(
                 f"{self.name}: layout missing: the actor flow does not cross junction {self.junction.id}"
             )
-        self.flow: ActorFlow | None = None
         self._left = WaitEndIntersection(ctx.map, self.junction.id)
+        self.removed_entries = self._entries_to_remove()
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Remove the junction's entries from background traffic, pause the opposite traffic, start the flow."""
-        bg = self.ctx.sim.background
-        entries = {(c.entry.road_id, c.entry.lane_id): c.entry for c in self.lanes}
-        bg.handle_junction_scenario(
-            clear_junction=False, clear_ego_entry=True,
-            remove_entries=[*entries.values(), *same_direction_lanes(self.path[0])], remove_exits=[],
+    def _entries_to_remove(self) -> list[Waypoint]:
+        """LB2.0's three entries taken from background traffic: the ego's (2 m before its junction entry), the one
+        from the road the ego turns into (the lane left of the ego's exit lane 10 m after the junction) and the
+        flow's source lane."""
+        route_entry = move_along(self.ego_entry, 2.0, forward=False) or self.ego_entry
+        route_exit = move_along(self.ego_exit, 10.0) if self.ego_exit is not None else None
+        other_entry = route_exit.get_left_lane() if route_exit is not None else None
+        if other_entry is None or not is_driving(other_entry):
+            # LB2.0 raises "Couldn't find an end position" here
+            raise ScenarioSetupError(f"{self.name}: layout missing: no driving lane left of the ego's exit lane")
+        return [route_entry, other_entry, self.path[0]]
+
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Remove the ego's entry, the exit road's entry and the flow's source from background traffic (the opposite
+        traffic pauses)."""
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=False, clear_ego_entry=True, remove_entries=self.removed_entries, remove_exits=[],
             stop_entries=False, extend_road_exit=0.0,
         )  # fmt: skip
-        bg.change_opposite_behavior(active=False)
-        self.flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval)
-        self.flow.start()
 
-    def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """The flow, not pre-populated."""
+        self.add_flow(self.path)
 
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS once the ego has left the junction."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego has left the junction."""
         ego = self.ctx.ego(snapshot)
-        if ego is not None and self._left.check(ego):
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
-
-    def on_end(self) -> None:
-        """Stop the flow and restore the opposite traffic."""
-        if self.flow is not None:
-            self.flow.stop()
-            self.ctx.sim.background.change_opposite_behavior(active=True)
+        return ego is not None and self._left.check(ego)
 
 
 def _opposite(wp: Waypoint, name: str) -> Waypoint:
@@ -127,16 +118,16 @@ def _opposite(wp: Waypoint, name: str) -> Waypoint:
 
 
 @register
-class InterurbanAdvancedActorFlow(JunctionScenario):
+class InterurbanAdvancedActorFlow(FlowScenario, JunctionScenario):
     """Left turn onto an interurban road across one fast flow and into another (§2.2 #34)."""
 
     xml_type = "InterurbanAdvancedActorFlow"
     required_turn = ("left",)
+    route_sources_off = True
+    opposite_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 10.0)
-        self.interval = ctx.interval("source_dist_interval", (20.0, 50.0))
         self.path_1: list[Waypoint] = flow_lane_path(ctx)
         if not any(wp.is_junction and wp.junction_id == self.junction.id for wp in self.path_1):
             raise ScenarioSetupError(f"{self.name}: layout missing: flow 1 does not cross junction {self.junction.id}")
@@ -150,44 +141,36 @@ class InterurbanAdvancedActorFlow(JunctionScenario):
         self.end_index = route.closest_index(end)
         if route.waypoints[self.end_index].transform.location.distance_2d(end) > 3.0:
             raise ScenarioSetupError(f"{self.name}: the route does not pass flow 2's sink")
-        self.flows: list[ActorFlow] = []
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Empty the junction of background traffic, stop the route sources and the opposite traffic; start the
-        two flows."""
-        bg = self.ctx.sim.background
+        # LB2.0 keeps the road after the junction free for flow 2's length past the junction + 20 m, and leaves
+        # flow 2's lane after the junction (the one the ego turns into) to the background
+        inside = [k for k, wp in enumerate(self.path_2) if wp.is_junction]
+        last = inside[-1] if inside else len(self.path_2) - 1
+        self.extra_space = 20.0 + float(len(self.path_2) - 1 - last)
+        self.route_exit: Waypoint | None = self.path_2[last + 1] if inside and last + 1 < len(self.path_2) else None
+
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Empty the junction of background traffic but for the ego's own entry and exit lanes (the route sources
+        and the opposite traffic stop); keep the road after it free for flow 2's length + 20 m."""
+        ego_entry = (self.ego_entry.road_id, self.ego_entry.lane_id)
+        ego_exit = (self.route_exit.road_id, self.route_exit.lane_id) if self.route_exit is not None else None
         entries = {(c.entry.road_id, c.entry.lane_id): c.entry for c in self.lanes}
         exits = {(c.exit.road_id, c.exit.lane_id): c.exit for c in self.lanes}
-        bg.handle_junction_scenario(
-            clear_junction=True, clear_ego_entry=True, remove_entries=list(entries.values()),
-            remove_exits=list(exits.values()), stop_entries=False, extend_road_exit=0.0,
+        self.ctx.sim.background.handle_junction_scenario(
+            clear_junction=True, clear_ego_entry=True,
+            remove_entries=[wp for key, wp in entries.items() if key != ego_entry],
+            remove_exits=[wp for key, wp in exits.items() if key != ego_exit], stop_entries=False,
+            extend_road_exit=self.extra_space,
         )  # fmt: skip
-        bg.switch_route_sources(False)
-        bg.change_opposite_behavior(active=False)
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """The two flows, not pre-populated."""
         for path in (self.path_1, self.path_2):
-            flow = ActorFlow(self.ctx.sim, self.ctx.rng, path, self.flow_speed, self.interval)
-            flow.start()
-            self.flows.append(flow)
+            self.add_flow(path)
 
-    def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
-
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flows; SUCCESS once the ego has passed flow 2's sink."""
-        for flow in self.flows:
-            flow.update(snapshot)
-        if self.ego_route_point(snapshot) >= self.end_index:
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
-
-    def on_end(self) -> None:
-        """Stop the flows, restore the route sources and the opposite traffic."""
-        for flow in self.flows:
-            flow.stop()
-        if self.flows:
-            self.ctx.sim.background.switch_route_sources(True)
-            self.ctx.sim.background.change_opposite_behavior(active=True)
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego has passed flow 2's sink."""
+        return self.ego_route_point(snapshot) >= self.end_index
 
 
 # ------------------------------------------------------------------------------------------------ placement

@@ -16,18 +16,18 @@ import logging
 from b2d_data.format.transform import Transform
 from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.actor_choices import CONSTRUCTION_CONE
-from b2d_data.scenarios.catalog.flows import ActorFlow, flow_path
+from b2d_data.scenarios.catalog.flows import FlowScenario, flow_path
 from b2d_data.scenarios.catalog.layout import Layout, register_layouts, two_way_single
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform, opposite_driving_neighbour
-from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import is_in_front
-from b2d_data.sim.api import ScenarioHint, SimulatorError, Snapshot
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
 
 @register
-class InvadingTurn(Scenario):
+class InvadingTurn(FlowScenario):
     """Cones on the opposite lane push an oncoming flow ``offset`` m into the ego's lane."""
 
     xml_type = "InvadingTurn"
@@ -42,6 +42,7 @@ class InvadingTurn(Scenario):
     hero_clearance = 15.0
     #: LB2.0 ends the scenario once the ego is in front of the source point and within this distance (m) of it.
     check_distance = 50.0
+    opposite_off = True
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -64,8 +65,6 @@ class InvadingTurn(Scenario):
         self.lateral = -(self.offset + source.lane_width / 2.0 - self.edge_margin)
         self.cone_waypoints = self._cone_waypoints(source)
         self.cones: list[int] = []
-        self._flow: ActorFlow | None = None
-        self._started = False
 
     def _cone_waypoints(self, source: Waypoint) -> list[Waypoint]:
         out = []
@@ -89,8 +88,12 @@ class InvadingTurn(Scenario):
         for transform in self.cone_transforms():
             self.cones.append(self.spawn(CONSTRUCTION_CONE, transform))
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Empty the ego's lane and the opposite traffic, put up the cones, start the invading flow.
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Empty the ego's lane (the opposite traffic pauses too)."""
+        self.ctx.sim.background.remove_road_lane(self.trigger_waypoint)
+
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """Put up the cones, start the invading flow.
 
         The flow cars stop only for a box inside their swept path (no margin): the ego keeping right leaves them
         a few tenths of a metre, and with a margin each would stop before it and wait for ever.
@@ -105,39 +108,23 @@ class InvadingTurn(Scenario):
         10 m/s (72 % of 50 km/h) the ego needs 4.7 m and two ticks (1 m) to stop, the two cars touch at about 5 m
         centre to centre, and the new car rolls toward the ego meanwhile.
         """
-        bg = self.ctx.sim.background
-        bg.remove_road_lane(self.trigger_waypoint)
-        bg.change_opposite_behavior(active=False)
         self._put_up_cones()
-        self._started = True
         limit = self.ctx.map.speed_limit(self.trigger_waypoint)
-        self._flow = ActorFlow(self.ctx.sim, self.ctx.rng, self.flow_waypoints, limit / 3.6,
-                               (self.flow_gap, self.flow_gap), constant_velocity=False, lateral_offset=self.lateral,
-                               lateral_margin=0.0, hero_clearance=self.hero_clearance)  # fmt: skip
-        self._flow.start()
+        self.add_flow(self.flow_waypoints, limit / 3.6, (self.flow_gap, self.flow_gap), constant_velocity=False,
+                      lateral_offset=self.lateral, lateral_margin=0.0, hero_clearance=self.hero_clearance)
 
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS once the ego is in front of the flow's source point and within 50 m of it."""
-        if self._flow is not None:
-            self._flow.update(snapshot)
+    def finished(self, snapshot: Snapshot) -> bool:
+        """The ego is in front of the flow's source point and within 50 m of it."""
         ego = self.ctx.ego(snapshot)
         if ego is None:
-            return ScenarioStatus.RUNNING
+            return False
         reference = self.source_reference.transform
         near = ego.location.distance(reference.location) < self.check_distance  # 3D, as WaitUntilInFrontPosition
-        return ScenarioStatus.SUCCESS if near and is_in_front(ego, reference) else ScenarioStatus.RUNNING
+        return near and is_in_front(ego, reference)
 
-    def on_end(self) -> None:
-        """Stop the flow, give the lanes back to the background."""
-        if self._flow is not None:
-            self._flow.stop()
-        if self._started:
-            bg = self.ctx.sim.background
-            bg.readd_road_lane(0)
-            try:
-                bg.change_opposite_behavior(active=True)
-            except SimulatorError as exc:
-                log.warning("%s: could not restore opposite traffic: %s", self.name, exc)
+    def restore_background(self) -> None:
+        """Give the ego's lane back to the background."""
+        self.ctx.sim.background.readd_road_lane(0)
 
     def hint(self) -> ScenarioHint | None:
         """The cone nearest the ego first, the one nearest the source last, and the offset."""
@@ -148,7 +135,7 @@ class InvadingTurn(Scenario):
     @property
     def flow_actor_ids(self) -> list[int]:
         """The live flow vehicles."""
-        return self._flow.actor_ids if self._flow is not None else []
+        return self.flow.actor_ids if self.flow is not None else []
 
 
 # ------------------------------------------------------------------------------------------------ placement

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import ClassVar
 
 from b2d_data.maps import Waypoint
-from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.junctions import (
     JunctionScenario,
     LightSchedule,
@@ -33,14 +33,14 @@ from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
     same_direction_lanes,
 )
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
-from b2d_data.sim.api import ScenarioHint, Snapshot
+from b2d_data.sim.api import Snapshot
 
 log = logging.getLogger(__name__)
 
 
-class JunctionFlowTurn(JunctionScenario):
+class JunctionFlowTurn(FlowScenario, JunctionScenario):
     """Common part: the flow, the end condition and the background preparation."""
 
     flow_direction: ClassVar[str] = "opposite"
@@ -50,12 +50,11 @@ class JunctionFlowTurn(JunctionScenario):
     signalized: ClassVar[bool] = True
     end_distance: ClassVar[float] = 10.0
     green_light_delay: ClassVar[float] = 5.0
+    default_flow_speed: ClassVar[float] = 20.0
     default_interval: ClassVar[tuple[float, float]] = (25.0, 50.0)
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
-        self.flow_speed = ctx.value("flow_speed", 20.0)
-        self.interval = ctx.interval("source_dist_interval", self.default_interval)
         entries = entries_from(self.lanes, self.ego_entry, self.flow_direction)
         if not entries:
             raise ScenarioSetupError(
@@ -79,7 +78,6 @@ class JunctionFlowTurn(JunctionScenario):
             )
         self.source_entry, self.path = self.pick(options)
         self.source, self.sink = self.path[0], self.path[-1]
-        self.flow: ActorFlow | None = None
         self.lights: LightSchedule | None = None
         self._left = WaitEndIntersection(ctx.map, self.junction.id)
         self._after = DriveDistance(self.end_distance)
@@ -101,9 +99,6 @@ class JunctionFlowTurn(JunctionScenario):
         """Which of the usable entries (with their flow paths) the flow takes."""
         return options[0]
 
-    def prepare_background(self) -> None:
-        """Background-traffic hooks at the trigger."""
-
     def build(self) -> None:
         """Check that a signalised version's junction has lights."""
         if self.signalized:
@@ -120,38 +115,25 @@ class JunctionFlowTurn(JunctionScenario):
         second = light_states(lights, [*ego_lights, *flow_lights])
         return LightSchedule(self.ctx.sim, [(first, self.green_light_delay), (second, None)])
 
-    def start(self, snapshot: Snapshot) -> None:
-        """Prepare the junction, start the flow and the light schedule."""
-        self.prepare_background()
-        self.flow = ActorFlow(
-            self.ctx.sim, self.ctx.rng, self.path, self.flow_speed, self.interval, initial_actors=self.initial_actors
-        )
-        self.flow.start()
+    def start_flows(self, snapshot: Snapshot) -> None:
+        """Start the flow and the light schedule."""
+        self.add_flow(self.path, initial_actors=self.initial_actors)
         self.lights = self.light_phases(snapshot)
         if self.lights is not None:
             self.lights.update(snapshot)
 
-    def hint(self) -> ScenarioHint | None:
-        """A hint of the scenario's type: its flow's cars never brake for the ego (the expert's flow checks)."""
-        return ScenarioHint(self.xml_type, None, None)
-
-    def update(self, snapshot: Snapshot) -> ScenarioStatus:
-        """Drive the flow; SUCCESS 10 m after the ego left the junction."""
-        if self.flow is not None:
-            self.flow.update(snapshot)
+    def step(self, snapshot: Snapshot) -> None:
+        """Run the light schedule."""
         if self.lights is not None:
             self.lights.update(snapshot)
-        ego = self.ctx.ego(snapshot)
-        if ego is None:
-            return ScenarioStatus.RUNNING
-        if self._left.check(ego) and self._after.check(ego):
-            return ScenarioStatus.SUCCESS
-        return ScenarioStatus.RUNNING
 
-    def on_end(self) -> None:
-        """Stop the flow and release the lights."""
-        if self.flow is not None:
-            self.flow.stop()
+    def finished(self, snapshot: Snapshot) -> bool:
+        """10 m after the ego left the junction."""
+        ego = self.ctx.ego(snapshot)
+        return ego is not None and self._left.check(ego) and self._after.check(ego)
+
+    def restore_background(self) -> None:
+        """Release the lights."""
         if self.lights is not None:
             self.lights.release()
 
@@ -163,26 +145,19 @@ class LeftTurnAcrossFlow(JunctionFlowTurn):
     flow_direction = "opposite"
     source_factor = 4.0
     sink_factor = 2.5
+    opposite_off = True
 
     def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
         """A random lane among those facing the ego."""
         return options[int(self.ctx.rng.integers(len(options)))]
 
-    def prepare_background(self) -> None:
-        """Clear the junction, remove the flow's lanes, pause the opposite traffic (unsignalised: stop entries)."""
-        bg = self.ctx.sim.background
-        bg.handle_junction_scenario(
+    def prepare_background(self, snapshot: Snapshot) -> None:
+        """Clear the junction, remove the flow's lanes (unsignalised: stop entries); the opposite traffic pauses."""
+        self.ctx.sim.background.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.source),
             remove_exits=same_direction_lanes(self.sink), stop_entries=not self.signalized,
             extend_road_exit=self.sink_distance + 20.0,
         )  # fmt: skip
-        bg.change_opposite_behavior(active=False)
-
-    def on_end(self) -> None:
-        """Also restore the opposite traffic."""
-        super().on_end()
-        if self.flow is not None:
-            self.ctx.sim.background.change_opposite_behavior(active=True)
 
 
 @register
@@ -243,7 +218,7 @@ class RightTurnIntoFlow(JunctionFlowTurn):
         """The rightmost driving lane of the left entry."""
         return [rightmost_driving(entries[0])]
 
-    def prepare_background(self) -> None:
+    def prepare_background(self, snapshot: Snapshot) -> None:
         """Clear the junction, remove the flow's entry lanes; unsignalised: stop the other entries."""
         self.ctx.sim.background.handle_junction_scenario(
             clear_junction=True, clear_ego_entry=True, remove_entries=same_direction_lanes(self.source),

@@ -216,3 +216,35 @@ def test_no_car_is_born_in_the_ego_lane_where_the_ego_cannot_stop_for_it():
     # at 12 m/s it closes (324 - 144) / 6 = 30 m: 35 m ahead leaves 25 m, 45 m ahead 35 m
     assert too_close(ego, Location(35.0, 0.0, 0.0), 12.0) and not too_close(ego, Location(45.0, 0.0, 0.0), 12.0)
     assert not too_close(ego, Location(-19.5, 0.0, 0.0), 0.0)  # behind the ego
+
+
+def test_no_car_is_born_in_front_of_a_background_car_that_cannot_stop_for_it():
+    from types import SimpleNamespace
+
+    from b2d_data.format.transform import Location, Rotation, Transform
+    from b2d_data.sim.api import ActorKind
+    from b2d_data.sim.builtin.background_traffic import BackgroundTrafficManager, _Newborn
+
+    def car(actor_id: int, x: float, y: float, yaw: float, speed: float) -> SimpleNamespace:
+        return SimpleNamespace(id=actor_id, kind=ActorKind.VEHICLE, transform=Transform(Location(x, y, 0.0),
+                               Rotation(yaw=yaw)), speed=lambda: speed)
+
+    def stops(actors, pending=(), initial: float = 0.0) -> bool:
+        manager = SimpleNamespace(_ego_id=1, _vehicles={a.id: None for a in actors if a.id != 1},
+                                  _pending=list(pending))
+        snapshot = SimpleNamespace(actors={a.id: a for a in actors})
+        return BackgroundTrafficManager._stops_a_follower(manager, snapshot, Location(0.0, 0.0, 0.0), 0.0, initial)
+
+    # a follower at 11 m/s closes on a standing newborn in 11² / (2 × 3) = 20.17 m, and must keep 10 m:
+    # 30 m behind leaves 20 m (too little), 30.5 m behind leaves 20.5 m (enough)
+    assert stops([car(7, -30.0, 0.0, 0.0, 11.0)])
+    assert not stops([car(7, -30.5, 0.0, 0.0, 11.0)])
+    # born at 5 m/s: (121 - 25) / 6 = 16 m to close, so 25 m behind (15 m of room) is too little, 27 m is not
+    assert stops([car(7, -25.0, 0.0, 0.0, 11.0)], initial=5.0)
+    assert not stops([car(7, -27.0, 0.0, 0.0, 11.0)], initial=5.0)
+    assert not stops([car(7, -20.0, 3.5, 0.0, 11.0)])  # the next lane
+    assert not stops([car(7, -20.0, 0.0, 180.0, 11.0)])  # oncoming
+    assert not stops([car(7, 20.0, 0.0, 0.0, 11.0)])  # ahead of the newborn
+    assert not stops([car(1, -20.0, 0.0, 0.0, 11.0)])  # the ego: _too_close_ahead decides for it
+    # a car born nearer in the same update is not in the snapshot yet (route 29000009: born at 11 m/s 11 m behind)
+    assert stops([], pending=[_Newborn(Location(-11.0, 0.0, 0.0), 0.0, 11.0)])

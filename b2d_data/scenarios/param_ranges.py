@@ -20,11 +20,15 @@ Where the training set departs from a plain min/max of the file:
   lie inside); the upper end of a ``from``/``to`` interval is never drawn below its lower end.
 - Typos are left out: CrossingBicycleFlow's ``source_dist_interval to="3255"`` (3 of 42) and ParkingCutIn's
   ``direction="40"`` (3 of 114).
-- ``direction`` is drawn from both sides only where the placement searches both (Accident, ConstructionObstacle,
-  ParkedObstacle, StaticCutIn). DynamicObjectCrossing, ParkingCrossingPedestrian, ParkingCutIn and ParkingExit
-  stay on the right (left in 12/141, 36/93, 27/90, 3/42 of the file): their layouts look for a sidewalk or parking
-  lane on the right only. DynamicObjectCrossing keeps our two blocker props (the file also has food carts, bus
-  stops, hay bales and parked cars).
+- ``direction``: Accident, ConstructionObstacle, ParkedObstacle and StaticCutIn draw both sides equally often.
+  DynamicObjectCrossing, ParkingCrossingPedestrian, ParkingCutIn and ParkingExit draw left as often as the file
+  has it, counting its routes without a ``direction`` as right (the default): 12 of 351, 36 of 126, 27 of 111
+  (the 3 typos left out) and 3 of 42; bench2drive220's ParkingCutIn 1 of 5. Left needs a one-way road's left
+  kerb (a sidewalk, or a parking lane): the generated towns' roads are all two-way or ramps, so there a left draw
+  finds no place and the route is drawn again at the next one.
+- DynamicObjectCrossing's ``blocker_model`` is drawn as often as the file has each model, with the nearest props
+  of our blueprint library for the three it lacks (:data:`~b2d_data.scenarios.catalog.actor_choices.
+  TRAINING_BLOCKER_MODELS`).
 - Parameters the file sets in only some scenarios (Accident's ``speed`` in 45 of 111) are drawn for every route.
 """
 
@@ -36,7 +40,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS
+from b2d_data.scenarios.catalog.actor_choices import BLOCKER_MODELS, TRAINING_BLOCKER_MODELS
 
 
 @dataclass(frozen=True)
@@ -71,13 +75,25 @@ class FloatRange:
 
 @dataclass(frozen=True)
 class Choice:
-    """One of ``values`` (a single value: nothing is drawn)."""
+    """One of ``values`` (a single value: nothing is drawn), equally likely or in proportion to ``weights``."""
 
     values: tuple[str, ...]
+    #: How often each value occurs in the source file (None: equally often).
+    weights: tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.weights is not None and (len(self.weights) != len(self.values) or min(self.weights) <= 0):
+            raise ValueError(f"weights {self.weights} must be positive, one per value of {self.values}")
 
     def draw(self, rng: np.random.Generator) -> str:
         """One of the values."""
-        return self.values[0] if len(self.values) == 1 else self.values[int(rng.integers(len(self.values)))]
+        if len(self.values) == 1:
+            return self.values[0]
+        if self.weights is None:
+            return self.values[int(rng.integers(len(self.values)))]
+        # one uniform draw against the cumulative counts: value k for u × total in [sum(w[:k]), sum(w[:k + 1]))
+        point = float(rng.uniform()) * sum(self.weights)
+        return self.values[int(np.searchsorted(np.cumsum(self.weights), point, side="right"))]
 
 
 @dataclass(frozen=True)
@@ -146,6 +162,12 @@ _RIGHT = Choice(("right",))
 _BOTH = Choice(("right", "left"))
 _BLOCKERS = Choice(BLOCKER_MODELS)
 
+
+def _sides(right: int, left: int) -> Choice:
+    """``direction`` as often right and left as a route file has it (routes without one count as right, the
+    scenarios' default)."""
+    return Choice(("right", "left"), (right, left))
+
 #: Bench2Drive's evaluation ranges, as drawn before the training set existed (order = drawing order).
 _BENCH2DRIVE220: dict[str, dict[str, Spec]] = {
     "Accident": {"distance": _r(40, 44), "direction": _RIGHT, "speed": _r(53, 57)},
@@ -164,7 +186,8 @@ _BENCH2DRIVE220: dict[str, dict[str, Spec]] = {
     "DynamicObjectCrossing": {"blocker_model": _BLOCKERS, "distance": _r(40, 50), "direction": _RIGHT,
                               "crossing_angle": _r(0, 11)},
     "ParkingCrossingPedestrian": {"distance": _r(36, 45), "direction": _RIGHT, "crossing_angle": _r(0, 12)},
-    "ParkingCutIn": {"direction": _RIGHT},
+    # bench2drive220.xml: 1 of its 5 ParkingCutIn routes is left
+    "ParkingCutIn": {"direction": _sides(4, 1)},
     "StaticCutIn": {"distance": _r(40, 45), "direction": _RIGHT},
     # Junction flows: the slower, sparser part of §2.2's ranges. The expert turns through a gap only when no flow
     # car's 2 s forecast meets its own; denser or faster flows (down to 1 s headways) leave it waiting for good.
@@ -201,10 +224,10 @@ _TRAINING: dict[str, dict[str, Spec]] = {
                                 "bicycle_drive_distance": _r(40, 300), "bicycle_speed": _r(5, 12)},
     "VehicleOpensDoorTwoWays": {"distance": _r(35, 80), "direction": _RIGHT, "frequency": _iv((25, 40), (80, 105))},
     "InvadingTurn": {"distance": _r(90, 200), "offset": FloatRange(0.15, 0.40)},
-    "DynamicObjectCrossing": {"blocker_model": _BLOCKERS, "distance": _r(15, 70), "direction": _RIGHT,
-                              "crossing_angle": _r(0, 20)},
-    "ParkingCrossingPedestrian": {"distance": _r(30, 50), "direction": _RIGHT, "crossing_angle": _r(5, 15)},
-    "ParkingCutIn": {"direction": _RIGHT},
+    "DynamicObjectCrossing": {"blocker_model": Choice(*zip(*TRAINING_BLOCKER_MODELS)), "distance": _r(15, 70),
+                              "direction": _sides(339, 12), "crossing_angle": _r(0, 20)},
+    "ParkingCrossingPedestrian": {"distance": _r(30, 50), "direction": _sides(90, 36), "crossing_angle": _r(5, 15)},
+    "ParkingCutIn": {"direction": _sides(84, 27)},
     "StaticCutIn": {"distance": _r(80, 170), "direction": _BOTH},
     "SignalizedJunctionLeftTurn": _flow((8, 19), (10, 40), (40, 85)),
     "NonSignalizedJunctionLeftTurn": _flow((8, 20), (10, 80), (40, 110)),
@@ -221,7 +244,8 @@ _TRAINING: dict[str, dict[str, Spec]] = {
     "HighwayExit": _flow((10, 15), (10, 25), (25, 50)),
     "EnterActorFlowV2": _BENCH2DRIVE220["EnterActorFlowV2"],
     "YieldToEmergencyVehicle": {"distance": _r(110, 140)},
-    "ParkingExit": {"direction": _RIGHT, "front_vehicle_distance": _r(9, 9), "behind_vehicle_distance": _r(9, 9)},
+    "ParkingExit": {"direction": _sides(39, 3), "front_vehicle_distance": _r(9, 9),
+                    "behind_vehicle_distance": _r(9, 9)},
 }  # fmt: skip
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -139,3 +141,18 @@ def test_carla_towns(carla_maps_dir):
     assert make_routes(town01, "ParkedObstacleTwoWays", 1, seed=0)
     with pytest.raises(PlacementError, match="parking_lane"):
         make_routes(town01, "ParkingExit", 1)
+
+
+def test_layouts_are_registered_beside_their_scenarios():
+    # issue 23 "Structure": the catalog registers every layout; placement.py names no scenario type
+    import b2d_data.scenarios.placement as placement_module
+    from b2d_data.format.scenario_types import SCENARIO_TYPES
+    from b2d_data.scenarios.catalog.layout import LAYOUTS as REGISTERED
+    from b2d_data.scenarios.catalog.layout import register_layouts
+
+    assert LAYOUTS is REGISTERED
+    source = Path(placement_module.__file__).read_text(encoding="utf-8")
+    assert [t.xml_type for t in SCENARIO_TYPES if f'"{t.xml_type}"' in source] == []
+    with pytest.raises(ValueError, match="registered already"):
+        register_layouts({"Accident": LAYOUTS["Accident"]})
+    assert LAYOUTS["Accident"] is REGISTERED["Accident"]  # the failed call changed nothing

@@ -1,4 +1,8 @@
-"""The implemented scenario types, one module per behaviour family; importing this package registers them."""
+"""The implemented scenario types, one module per behaviour family; importing this package registers them.
+
+Each family also registers its types' placement layouts (:mod:`.layout`), in its module or, where that would grow
+too long, in a sibling ``<family>_placement`` module imported here.
+"""
 
 from b2d_data.scenarios.catalog.blocked_intersection import BlockedIntersection
 from b2d_data.scenarios.catalog.control_loss import ControlLoss
@@ -46,6 +50,9 @@ from b2d_data.scenarios.catalog.vanilla_turns import (
 )
 from b2d_data.scenarios.catalog.vehicle_opens_door import VehicleOpensDoorTwoWays
 from b2d_data.scenarios.catalog.yield_emergency import YieldToEmergencyVehicle
+
+# layouts registered outside the family modules
+from b2d_data.scenarios.catalog import highway_placement, no_scenario, obstacles_placement  # noqa: F401
 
 __all__ = [
     "Accident", "AccidentTwoWays", "ConstructionObstacle", "ConstructionObstacleTwoWays", "CrossingBicycleFlow",

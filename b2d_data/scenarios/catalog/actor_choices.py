@@ -21,8 +21,23 @@ CONSTRUCTION_CONE = "static.prop.constructioncone"
 #: Light state names (CARLA's VehicleLightState flags) for sirens and hazard blinkers.
 SIREN_LIGHTS = "Special1"
 HAZARD_LIGHTS = "LeftBlinker|RightBlinker"
-#: DynamicObjectCrossing blocker props (XML ``blocker_model``) that generated routes draw from (bench2drive220's).
+#: DynamicObjectCrossing blocker props (XML ``blocker_model``) that bench2drive220-range routes draw from.
 BLOCKER_MODELS = ("static.prop.advertisement", "static.prop.container")
+#: DynamicObjectCrossing's ``blocker_model`` in LB2.0's routes_training.xml with how often each occurs (351
+#: scenarios). The blueprint library lacks three, drawn as their nearest: ``static.prop.foodcart`` (57) as the
+#: street-food kiosk, ``static.prop.busstoplb`` (57) and ``static.prop.haybalelb`` (33), the large-map variants, as
+#: the bus stop and the hay bale.
+TRAINING_BLOCKER_MODELS: tuple[tuple[str, int], ...] = (
+    ("static.prop.advertisement", 84),
+    ("static.prop.container", 99),
+    ("static.prop.kiosk_01", 57),
+    ("static.prop.busstop", 57),
+    ("static.prop.haybale", 33),
+    ("vehicle.mini.cooper_s", 6),
+    ("vehicle.nissan.patrol_2021", 6),
+    ("vehicle.tesla.model3", 6),
+    ("vehicle.audi.tt", 3),
+)
 #: DynamicObjectCrossing's blocker when the XML gives none: LB2.0's default (object_crash_vehicle.py).
 DEFAULT_BLOCKER_MODEL = "static.prop.vendingmachine"
 

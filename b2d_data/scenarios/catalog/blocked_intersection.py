@@ -11,6 +11,7 @@ import logging
 
 from b2d_data.scenarios.catalog.actor_choices import random_parked_car
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform
 from b2d_data.scenarios.controllers import park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
@@ -81,3 +82,12 @@ class BlockedIntersection(JunctionScenario):
             self.blocker = None
             return ScenarioStatus.SUCCESS
         return ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "BlockedIntersection": Layout(
+        "junction_turn", "a junction where the route turns", turns=("left", "right")),
+})  # fmt: skip

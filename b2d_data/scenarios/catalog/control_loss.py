@@ -14,6 +14,7 @@ import logging
 from dataclasses import dataclass, replace
 
 from b2d_data.format.transform import Transform
+from b2d_data.scenarios.catalog.layout import Layout, any_lane, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, horizontal_distance
@@ -106,3 +107,12 @@ class ControlLoss(Scenario):
         throttle = control.throttle + float(rng.normal(patch.throttle_mean, self.throttle_noise[1]))
         steer = control.steer + float(rng.normal(patch.steer_mean, self.steer_noise[1]))
         return replace(control, throttle=min(max(throttle, 0.0), 1.0), steer=min(max(steer, -1.0), 1.0))
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "ControlLoss": Layout("road", "any driving lane, 115 m junction-free", any_lane, clear_after=115.0,
+                          length=130.0),
+})  # fmt: skip

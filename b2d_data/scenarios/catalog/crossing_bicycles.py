@@ -19,9 +19,16 @@ from typing import ClassVar
 from b2d_data.format.transform import Location
 from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.flows import FlowScenario
-from b2d_data.scenarios.catalog.junctions import JunctionScenario, LightSchedule, light_states, lights_of_lane
-from b2d_data.scenarios.catalog.road_geometry import lane_walk
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
+from b2d_data.scenarios.catalog.junctions import (
+    JunctionScenario,
+    LightSchedule,
+    light_states,
+    lights_of_lane,
+    walk_back_to_source,
+)
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts, xml_location
+from b2d_data.scenarios.catalog.road_geometry import JunctionLane, entries_from, find_side_lane, lane_walk
+from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim import blueprints
 from b2d_data.sim.api import Snapshot
@@ -130,3 +137,32 @@ class CrossingBicycleFlow(FlowScenario, JunctionScenario):
         """Release the lights."""
         if self.lights is not None:
             self.lights.release()
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+#: CrossingBicycleFlow's bicycles start this far before the junction on the bike lane (m).
+BICYCLE_FLOW_BACK = 30.0
+
+
+def _bicycle_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A bike lane right of an opposite entry that runs straight through the junction: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        bike = find_side_lane(entry, "right", LaneType.BIKING)
+        if bike is None:
+            continue
+        start = walk_back_to_source(bike, BICYCLE_FLOW_BACK)
+        try:
+            path = bicycle_path(start, conn.junction_id)
+        except ScenarioError:
+            continue
+        return [{"start_actor_flow": xml_location(start), "end_actor_flow": xml_location(path[-1])}]
+    return []
+
+
+register_layouts({
+    "CrossingBicycleFlow": Layout(
+        "bike_lane", "a junction where the route turns left across an opposite bike lane that continues straight "
+        "through it", turns=("left",), junction_extra=_bicycle_flow),
+})  # fmt: skip

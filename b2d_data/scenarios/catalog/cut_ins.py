@@ -1,16 +1,18 @@
 """ParkingCutIn and StaticCutIn (§2.2 #3, #4): a car pulls into the ego's lane just in front of it.
 
 ParkingCutIn: a blocker car parked 28 m ahead and the cut-in car 35 m ahead, both in the ``direction``-side
-parking lane pushed toward its outer edge (hand brake). At the trigger the background clears 45 m ahead; when the
+lane (a parking lane on generated routes; any lane there, as LB2.0's ``get_right_lane``/``get_left_lane``) pushed
+toward its outer edge (hand brake). At the trigger the background clears 45 m ahead; when the
 ego's time to arrival at the cut-in car drops below 2.35 s (or within 10 m) it pulls out at 20 km/h into the ego's
 lane (stopping for vehicles in its way, ignoring lights) and drives 30 m; then both cars are removed. The
 background gets 20 m extra space from the pull-out to the scenario's end.
 
 StaticCutIn: a queue of six stopped cars 11 m apart in the ``direction``-side lane from ``distance`` m ahead, the
-third one the cut-in car (hidden until the trigger, when the background clears distance + 66 m ahead and leaves
-that lane). When the ego's time to arrival at the cut-in car drops below 2.7 s (or within 15 m) it pulls into the
-ego's lane in 3 s (within 9 m, so as to clear the queued car ahead of it), drives 2 s more at the ego's speed, then
-follows the lane for 70 m at 60 km/h. The background gets 30 m extra space.
+third one the cut-in car (hidden until the trigger, when the background clears distance + 66 m ahead). When the
+ego's time to arrival at the ego-lane point abreast of the cut-in car drops below 2.7 s (or within 15 m), the
+background gets 30 m extra space and leaves the side lane, and the car pulls into the ego's lane in 3 s (within 9
+m, so as to clear the queued car ahead of it), drives 2 s more at the ego's speed, then follows the lane for 70 m
+at 60 km/h. At the end the extra space goes back to 0 and the side lane opens again.
 """
 
 from __future__ import annotations
@@ -19,8 +21,18 @@ import logging
 
 import numpy as np
 
-from b2d_data.maps import LaneType, Waypoint
+from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
+from b2d_data.scenarios.catalog.layout import (
+    STRAIGHTISH,
+    Layout,
+    leftmost_beside_parking,
+    multi_lane_left,
+    multi_lane_right,
+    parking_ahead,
+    register_layouts,
+    rightmost,
+)
 from b2d_data.scenarios.catalog.road_geometry import (
     lane_walk,
     lateral_offset,
@@ -84,10 +96,11 @@ class ParkingCutIn(Scenario):
         self.slots: list[tuple[Waypoint, Waypoint]] = []  # (driving lane, parking lane)
         for d in (self.blocker_distance, self.cut_in_distance):
             lane = move_along(self.trigger_waypoint, d)
+            # LB2.0 takes whatever lane lies to that side (``get_right_lane``/``get_left_lane``), parking or not
             parking = neighbour(lane, self.direction) if lane is not None and not lane.is_junction else None
-            if parking is None or not parking.lane_type & LaneType.PARKING:
+            if parking is None:
                 raise ScenarioSetupError(
-                    f"{self.name}: layout 'parking_lane' missing: no parking lane to the {self.direction} "
+                    f"{self.name}: layout 'parking_lane' missing: no lane to the {self.direction} "
                     f"{d:.0f} m after the trigger point"
                 )
             self.slots.append((lane, parking))
@@ -196,7 +209,9 @@ class StaticCutIn(Scenario):
         self.ego_lane = ego_lane
         self.cut_in_lateral = lateral_offset(ego_lane, cut_in_spot)
         self.models = [random_parked_car(ctx.rng) for _ in self.spots]
-        self._tta = TimeToArrivalTrigger(cut_in_spot.transform.location, self.sync_time, self.min_trigger_distance)
+        # LB2.0 (cut_in_with_static_vehicle.py) times the cut-in to _collision_wp: the ego lane's point abreast of
+        # the cut-in car
+        self._tta = TimeToArrivalTrigger(ego_lane.transform.location, self.sync_time, self.min_trigger_distance)
         self.cars: list[int] = []
         self._agent: ConstantVelocityAgent | None = None
         self._t0: float | None = None
@@ -209,10 +224,9 @@ class StaticCutIn(Scenario):
         return self.cars[self.queue_before] if len(self.cars) > self.queue_before else None
 
     def start(self, snapshot: Snapshot) -> None:
-        """Clear the road ahead, take the side lane from the background, show the queue."""
+        """Clear the road ahead, show the queue."""
         bg = self.ctx.sim.background
         bg.leave_space_in_front(self.distance + self.clear_extra)
-        bg.remove_road_lane(self.side_lane)
         for wp, model in zip(self.spots, self.models):
             transforms = [offset_transform(wp, forward=f, z=0.05) for f in (0.0, 1.0, -1.0)]
             car = self.spawn(model, transforms[0], retries=transforms[1:])
@@ -227,6 +241,10 @@ class StaticCutIn(Scenario):
         if self._agent is None:
             if not self._tta.check(ego):
                 return ScenarioStatus.RUNNING
+            # LB2.0 at the trigger: 30 m extra space, the side lane (at the second queued car) taken from the road
+            bg = self.ctx.sim.background
+            bg.change_road_behavior(extra_space=self.extra_space)
+            bg.remove_road_lane(self.spots[1])
             self._ego_speed = max(ego.speed(), 3.0)
             total = self.merge_length + self._ego_speed * self.keep_time + self.final_distance
             track = merge_track(self.ego_lane, self.cut_in_lateral, self.merge_length, total, ease_in=False)
@@ -241,6 +259,28 @@ class StaticCutIn(Scenario):
             self._phase, self._agent.speed = 1, self._ego_speed
         if self._phase == 1 and elapsed >= self.change_time + self.keep_time:
             self._phase, self._agent.speed = 2, self.final_speed
-            self.ctx.sim.background.change_road_behavior(extra_space=self.extra_space)
         self._agent.run_step(snapshot)
         return ScenarioStatus.SUCCESS if self._agent.done else ScenarioStatus.RUNNING
+
+    def on_end(self) -> None:
+        """The road's extra space back to 0 and the side lane open again (LB2.0's ChangeRoadBehavior(extra_space=0)
+        and ReAddRoadLane at the end)."""
+        if self._agent is not None:
+            bg = self.ctx.sim.background
+            bg.change_road_behavior(extra_space=0.0)
+            bg.readd_road_lane(1 if self.direction == "right" else -1)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "ParkingCutIn": Layout("parking_lane", "rightmost lane with a parking lane on the right 24–40 m ahead (or "
+                           "leftmost with one on the left), 100 m junction-free", rightmost, clear_after=100.0,
+                           pre=(12.0, 14.0),
+                           extra=parking_ahead((24.0, 28.0, 32.0, 36.0, 40.0)), max_turn=STRAIGHTISH,
+                           directions={"right": rightmost, "left": leftmost_beside_parking}, extra_sides=("right",)),
+    "StaticCutIn": Layout("multi_lane", "two same-direction lanes (ego on the left one), 130 m junction-free",
+                          multi_lane_right, clear_after=130.0, max_turn=STRAIGHTISH,
+                          directions={"right": multi_lane_right, "left": multi_lane_left}, reach_param="distance"),
+})  # fmt: skip

@@ -15,8 +15,16 @@ from typing import ClassVar
 from b2d_data.format.transform import Location
 from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.flows import FlowScenario
-from b2d_data.scenarios.catalog.junctions import JunctionScenario
-from b2d_data.scenarios.catalog.road_geometry import lane_walk, same_direction_lanes
+from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts, xml_location
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    entries_from,
+    flow_into_exit,
+    lane_walk,
+    move_along,
+    same_direction_lanes,
+)
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.sim.api import Snapshot
 
@@ -94,3 +102,33 @@ class EnterActorFlow(FlowScenario, JunctionScenario):
         """The ego is within 2 m of a sink."""
         ego = self.ctx.ego(snapshot)
         return ego is not None and any(ego.location.distance_2d(s.transform.location) < SINK_REACHED for s in self.sinks)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+#: EnterActorFlow's flow starts this far before the junction (less where an earlier junction is nearer) and ends
+#: this far after it (m), as in Bench2Drive's routes (45-60 m before, 20-25 m after).
+ENTER_FLOW_BACK, ENTER_FLOW_AFTER = 55.0, 22.0
+
+
+def _enter_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """A left entry whose straight lane reaches the road the ego turns right into: the flow's start and end."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        flow = flow_into_exit(lanes, entry, conn.exit, turn="straight")
+        if flow is None:
+            continue
+        end = move_along(flow.exit, ENTER_FLOW_AFTER, step=2.0)
+        if end is None or end.is_junction:
+            continue
+        start = walk_back_to_source(flow.entry, ENTER_FLOW_BACK)
+        return [{"start_actor_flow": xml_location(start), "end_actor_flow": xml_location(end)}]
+    return []
+
+
+register_layouts({
+    "EnterActorFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
+        "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
+        junction_extra=_enter_flow),
+})  # fmt: skip

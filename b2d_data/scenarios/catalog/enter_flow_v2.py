@@ -48,6 +48,7 @@ from b2d_data.maps import Map, Waypoint
 from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.interurban import flow_lane_path, location_parameter
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     move_along,
@@ -186,3 +187,11 @@ class EnterActorFlowV2(FlowScenario, JunctionScenario):
             return None
         sink = self.path[-1].transform.location
         return ScenarioHint(self.xml_type, None, None, extra={"sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
+
+
+register_layouts({
+    "EnterActorFlowV2": Layout(
+        "highway_ramps", "an on-ramp whose lane runs on beside a highway (>= 80 km/h) lane after its junction",
+        turns=("straight", "left", "right"), junction_ok=dedicated_entry, junction_extra=flow_beside,
+        approach=APPROACH, departure=DEPARTURE, trigger_offset=TRIGGER_OFFSET, merge_left_after=MERGE_AFTER),
+})  # fmt: skip

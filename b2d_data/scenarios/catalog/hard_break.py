@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 
+from b2d_data.scenarios.catalog.layout import Layout, any_lane, register_layouts
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, Timer
 from b2d_data.sim.api import Snapshot
@@ -46,3 +47,11 @@ class HardBreakRoute(Scenario):
         if not self._released:
             self.ctx.sim.background.start_front_vehicles()
             self._released = True
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "HardBreakRoute": Layout("road", "any driving lane, 60 m junction-free", any_lane, clear_after=60.0),
+})  # fmt: skip

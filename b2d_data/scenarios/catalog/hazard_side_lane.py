@@ -8,6 +8,13 @@ import logging
 from b2d_data.format.transform import Transform
 from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.actor_choices import random_bicycle
+from b2d_data.scenarios.catalog.layout import (
+    STRAIGHTISH,
+    Layout,
+    multi_lane_rightmost,
+    register_layouts,
+    two_way_single,
+)
 from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
     offset_transform,
@@ -182,3 +189,16 @@ class HazardAtSideLaneTwoWays(HazardAtSideLane):
             # LB2.0 appends SwitchWrongDirectionTest(False) after the scenario's main behaviour whether or not the
             # reaction happened; the test is never switched back on by this scenario.
             self.request_switch(SWITCH_WRONG_DIRECTION, False)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "HazardAtSideLane": Layout("multi_lane", "two same-direction lanes (ego on the right one), 130 m junction-free",
+                               multi_lane_rightmost, clear_after=130.0, max_turn=STRAIGHTISH,
+                               reach_param="distance"),
+    "HazardAtSideLaneTwoWays": Layout("two_way_street", "one lane each way, 130 m junction-free",
+                                      two_way_single, clear_after=130.0, max_turn=STRAIGHTISH,
+                                      reach_param="distance"),
+})  # fmt: skip

@@ -12,10 +12,22 @@ from __future__ import annotations
 
 import logging
 
-from b2d_data.maps import Waypoint
+import numpy as np
+
+from b2d_data.maps import Map, Waypoint
 from b2d_data.scenarios.catalog.flows import FlowScenario
+from b2d_data.scenarios.catalog.highway_placement import HIGHWAY_MIN_LIMIT, MERGE_MAX_ANGLE
 from b2d_data.scenarios.catalog.interurban import location_parameter
-from b2d_data.scenarios.catalog.road_geometry import lane_walk
+from b2d_data.scenarios.catalog.junctions import walk_back_to_source
+from b2d_data.scenarios.catalog.layout import KEYPOINT_SPACING, Layout, register_layouts, through_junction, xml_location
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    junction_lanes,
+    lane_walk,
+    move_along,
+    same_direction_driving_neighbour,
+    same_lane,
+)
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim.api import Snapshot
@@ -149,3 +161,124 @@ class HighwayExit(FlowScenario):
         """The ego has left the exit junction."""
         ego = self.ctx.ego(snapshot)
         return ego is not None and self._left.check(ego)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+#: change and the junction (or the change into a deceleration lane); where the deceleration lane is at least
+#: ``EXIT_LANE_MIN_WIDTH`` m wide, the share of it before the junction where the route enters it.
+EXIT_START_RUN, EXIT_CHANGE_RUN, EXIT_LANE_SHARE = (15.0, 25.0), (85.0, 105.0), (0.35, 0.55)
+EXIT_LANE_MIN_WIDTH = 3.0
+#: HighwayExit's flow starts this far behind the route's start and ends this far past the junction (m), as in
+#: Bench2Drive's routes (26-28 m behind the trigger point).
+EXIT_FLOW_BEHIND, EXIT_FLOW_AFTER = 28.0, 30.0
+
+
+def _exit_lanes(conn: JunctionLane, lanes: list[JunctionLane]) -> tuple[JunctionLane, Waypoint] | None:
+    """For an exit connection: the flow lane's connection staying on the highway and the ego's lane left of it.
+
+    The flow lane is the exit lane itself where it also goes straight on (Town04), else the lane left of it (a
+    deceleration lane, the generated towns). ``conn`` is an exit when no other lane of its road goes its way.
+    """
+    e = conn.entry
+    sign = e.lane_id > 0
+    others = [o for o in lanes if o.entry.road_id == e.road_id and (o.entry.lane_id > 0) == sign]
+    highway = {o.exit.road_id for o in others if o.entry.lane_id != e.lane_id}
+    if not highway or conn.exit.road_id in highway:
+        return None
+    own = [o for o in others if o.entry.lane_id == e.lane_id and o.exit.road_id in highway]
+    flow_entry = e if own else same_direction_driving_neighbour(e, "left")
+    if flow_entry is None:
+        return None
+    through = [o for o in others if o.entry.lane_id == flow_entry.lane_id and o.exit.road_id in highway]
+    ego_lane = same_direction_driving_neighbour(flow_entry, "left")
+    if not through or ego_lane is None:
+        return None
+    straight = min(through, key=lambda o: abs(o.angle))
+    if conn.angle <= straight.angle:  # the exit leaves to the left
+        return None
+    return straight, ego_lane
+
+
+def _highway_exit(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """A highway (>= 80 km/h) lane leaving by an exit on the right, with a flow lane and the ego's lane left of it."""
+    found = _exit_lanes(conn, lanes)
+    return (
+        found is not None
+        and min(town.speed_limit(conn.entry), town.speed_limit(found[0].exit)) >= HIGHWAY_MIN_LIMIT
+        and conn.angle - found[0].angle < MERGE_MAX_ANGLE  # a ramp leaving at a shallow angle, not a side street
+    )
+
+
+def _wide_run_back(wp: Waypoint, min_width: float, cap: float) -> float:
+    """Metres back from ``wp`` along its lane while the lane is at least ``min_width`` m wide (2 m steps)."""
+    run, current = 0.0, wp
+    while run < cap:
+        prev = move_along(current, KEYPOINT_SPACING, forward=False, step=KEYPOINT_SPACING)
+        if prev is None or prev.is_junction or prev.lane_width < min_width or prev.lane_id != current.lane_id:
+            break
+        run, current = run + KEYPOINT_SPACING, prev
+    return run
+
+
+def _exit_route(conn: JunctionLane, rng: np.random.Generator) -> tuple[list[Waypoint], Waypoint] | None:
+    """The ego's lane, a change right across the flow lane, (a change into the deceleration lane,) the exit."""
+    step = KEYPOINT_SPACING
+    junction = conn.start.get_junction()
+    found = _exit_lanes(conn, junction_lanes(junction)) if junction is not None else None
+    if found is None:
+        return None
+    flow_entry = same_direction_driving_neighbour(found[1], "right")
+    if flow_entry is None:
+        return None
+    d_fe = 0.0
+    decel = not same_lane(flow_entry, conn.entry)
+    if decel:
+        wide = _wide_run_back(conn.entry, EXIT_LANE_MIN_WIDTH, 200.0)
+        if wide < 30.0:
+            return None
+        d_fe = step * round(float(rng.uniform(*EXIT_LANE_SHARE)) * wide / step)
+    d_gf = d_fe + step * round(float(rng.uniform(*EXIT_CHANGE_RUN)) / step)
+    d_start = d_gf + step * round(float(rng.uniform(*EXIT_START_RUN)) / step)
+    f_gf = move_along(flow_entry, d_gf, forward=False, step=step)
+    g_gf = same_direction_driving_neighbour(f_gf, "left") if f_gf is not None else None
+    if g_gf is None:
+        return None
+    g_run = lane_walk(g_gf, d_start - d_gf, forward=False, step=step)
+    f_next = move_along(f_gf, step, step=step)
+    if len(g_run) * step < d_start - d_gf or f_next is None:
+        return None
+    path = list(reversed(g_run)) + lane_walk(f_next, d_gf - d_fe - step, step=step)
+    if decel:
+        e_next = same_direction_driving_neighbour(move_along(path[-1], step, step=step) or path[-1], "right")
+        if e_next is None:
+            return None
+        path += lane_walk(e_next, d_fe - step, step=step)
+    through = through_junction(conn, float(rng.uniform(30.0, 40.0)), 30.0)
+    if through is None or any(wp.is_junction for wp in path):
+        return None
+    return path + through, path[int(rng.integers(0, 2))]
+
+
+def _exit_flow(conn: JunctionLane | None, path: list[Waypoint]) -> dict[str, dict[str, str]] | None:
+    """The flow: from ``EXIT_FLOW_BEHIND`` m behind the route's start on the lane right of it to
+    ``EXIT_FLOW_AFTER`` m past the junction on the highway."""
+    junction = conn.start.get_junction() if conn is not None else None
+    found = _exit_lanes(conn, junction_lanes(junction)) if conn is not None and junction is not None else None
+    beside = same_direction_driving_neighbour(path[0], "right")
+    if found is None or beside is None:
+        return None
+    source = walk_back_to_source(beside, EXIT_FLOW_BEHIND, step=2.0)
+    sink = move_along(found[0].exit, EXIT_FLOW_AFTER)
+    if sink is None or sink.is_junction:
+        return None
+    return {"start_actor_flow": xml_location(source), "end_actor_flow": xml_location(sink)}
+
+
+register_layouts({
+    "HighwayExit": Layout(
+        "highway_exit", "a highway (>= 80 km/h) exit on the right, with a flow lane to cross and the ego's lane left "
+        "of it", turns=("straight", "right"), junction_ok=_highway_exit, approach=(20.0, 30.0),
+        departure=(30.0, 40.0), route_path=_exit_route, path_parameters=_exit_flow),
+})  # fmt: skip

@@ -19,10 +19,11 @@ from __future__ import annotations
 import logging
 
 from b2d_data.format.transform import Location
-from b2d_data.maps import Waypoint
+from b2d_data.maps import Map, Waypoint
 from b2d_data.scenarios.catalog.flows import FlowScenario, flow_path
-from b2d_data.scenarios.catalog.junctions import JunctionScenario
-from b2d_data.scenarios.catalog.road_geometry import is_driving, move_along
+from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
+from b2d_data.scenarios.catalog.layout import CHECK_STEP, Layout, register_layouts, signal_lanes, xml_location
+from b2d_data.scenarios.catalog.road_geometry import JunctionLane, connection, entries_from, is_driving, move_along
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim.api import Snapshot
@@ -170,3 +171,79 @@ class InterurbanAdvancedActorFlow(FlowScenario, JunctionScenario):
     def finished(self, snapshot: Snapshot) -> bool:
         """The ego has passed flow 2's sink."""
         return self.ego_route_point(snapshot) >= self.end_index
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+#: Interurban roads are faster than this (km/h); town streets and boulevards are 30–60.
+INTERURBAN_MIN_LIMIT = 65.0
+
+
+def _interurban_turn(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego leaves a fast road with priority (no stop sign) that goes on straight across the junction."""
+    if town.speed_limit(conn.entry) <= INTERURBAN_MIN_LIMIT:
+        return False
+    keys = {(conn.entry.road_id, conn.entry.lane_id), (conn.start.road_id, conn.start.lane_id)}
+    if keys & signal_lanes(town.stop_signs()):
+        return False
+    opposite = entries_from(lanes, conn.entry, "opposite")
+    return any(town.speed_limit(e) > INTERURBAN_MIN_LIMIT for e in opposite)
+
+
+def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The opposite entry's straight lane as the flow: source 70 m before the junction, sink 40 m after it."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 70.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"start_actor_flow": xml_location(source), "end_actor_flow": xml_location(sink)}]
+    return []
+
+
+def _onto_interurban(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
+    """The ego turns from a side road onto a fast road that runs straight across the junction."""
+    # the limit just after a junction is still the previous road's (speed signs stand a little way in)
+    onto = move_along(conn.exit, 30.0, step=CHECK_STEP)
+    fast = town.speed_limit(onto) if onto is not None else 0.0
+    if not (fast > INTERURBAN_MIN_LIMIT and town.speed_limit(conn.entry) < fast):
+        return False
+    # flow 1 drives along the fast road on both sides of the junction (not into or out of a town street)
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        beyond = move_along(straight.exit, 30.0, step=CHECK_STEP) if straight is not None else None
+        if beyond is not None and min(town.speed_limit(entry), town.speed_limit(beyond)) > INTERURBAN_MIN_LIMIT:
+            return True
+    return False
+
+
+def _interurban_two_flows(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Flow 1 on the left entry's straight lane, 60 m before the junction to 40 m after it (flow 2 runs back on the
+    lanes beside it, into the ego's exit lane)."""
+    for entry in entries_from(lanes, conn.entry, "left"):
+        straight = connection(lanes, entry, "straight")
+        if straight is None:
+            continue
+        source = walk_back_to_source(straight.entry, 60.0)
+        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
+        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
+            continue
+        return [{"direction": {"value": "right"}, "start_actor_flow": xml_location(source),
+                 "end_actor_flow": xml_location(sink)}]  # fmt: skip
+    return []
+
+
+register_layouts({
+    "InterurbanActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left off a road faster than 65 km/h, with an "
+        "opposite entry going straight on for 40 m", turns=("left",), signalized=False,
+        junction_extra=_interurban_flow, junction_ok=_interurban_turn),
+    "InterurbanAdvancedActorFlow": Layout(
+        "interurban", "an unsignalised junction where the route turns left from a side road onto a road faster than "
+        "65 km/h, with a left entry going straight on", turns=("left",), signalized=False,
+        junction_extra=_interurban_two_flows, junction_ok=_onto_interurban, departure=(70.0, 85.0)),
+})  # fmt: skip

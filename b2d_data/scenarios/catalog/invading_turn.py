@@ -17,6 +17,7 @@ from b2d_data.format.transform import Transform
 from b2d_data.maps import Waypoint
 from b2d_data.scenarios.catalog.actor_choices import CONSTRUCTION_CONE
 from b2d_data.scenarios.catalog.flows import FlowScenario, flow_path
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts, two_way_single
 from b2d_data.scenarios.catalog.road_geometry import move_along, offset_transform, opposite_driving_neighbour
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import is_in_front
@@ -135,3 +136,12 @@ class InvadingTurn(FlowScenario):
     def flow_actor_ids(self) -> list[int]:
         """The live flow vehicles."""
         return self.flow.actor_ids if self.flow is not None else []
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "InvadingTurn": Layout("two_way_street", "one lane each way, 100 m junction-free", two_way_single,
+                           clear_after=100.0, reach_param="distance"),
+})  # fmt: skip

@@ -11,6 +11,7 @@ ones the background stops the junction's other entries. All end 10 m after the e
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import ClassVar
 
 from b2d_data.maps import Waypoint
@@ -23,11 +24,13 @@ from b2d_data.scenarios.catalog.junctions import (
     lights_of_lane,
     rightmost_driving,
 )
+from b2d_data.scenarios.catalog.layout import CHECK_STEP, Layout, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     connection,
     entries_from,
     flow_into_exit,
+    move_along,
     same_direction_lanes,
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
@@ -237,3 +240,47 @@ class NonSignalizedJunctionRightTurn(RightTurnIntoFlow):
 
     xml_type = "NonSignalizedJunctionRightTurn"
     signalized = False
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _flow_from(direction: str) -> Callable[[JunctionLane, list[JunctionLane]], list[dict[str, dict[str, str]]]]:
+    def check(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+        for entry in entries_from(lanes, conn.entry, direction):
+            straight = connection(lanes, entry, "straight")
+            if straight is not None and move_along(straight.exit, 45.0, step=CHECK_STEP) is not None:
+                return [{}]
+        return []
+
+    return check
+
+
+def _flow_into_ego_exit(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """An opposite entry turning right onto the road the ego turns left into."""
+    for entry in entries_from(lanes, conn.entry, "opposite"):
+        if flow_into_exit(lanes, entry, conn.exit) is not None:
+            return [{}]
+    return []
+
+
+register_layouts({
+    "SignalizedJunctionLeftTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=True, junction_extra=_flow_from("opposite")),
+    "NonSignalizedJunctionLeftTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry going "
+        "straight", turns=("left",), signalized=False, junction_extra=_flow_from("opposite")),
+    "SignalizedJunctionLeftTurnEnterFlow": Layout(
+        "signalized_junction", "a signalised junction where the route turns left, with an opposite entry turning "
+        "right into the same road", turns=("left",), signalized=True, junction_extra=_flow_into_ego_exit),
+    "NonSignalizedJunctionLeftTurnEnterFlow": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns left, with an opposite entry "
+        "turning right into the same road", turns=("left",), signalized=False, junction_extra=_flow_into_ego_exit),
+    "SignalizedJunctionRightTurn": Layout(
+        "signalized_junction", "a signalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=True, junction_extra=_flow_from("left")),
+    "NonSignalizedJunctionRightTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns right, with a left entry going "
+        "straight", turns=("right",), signalized=False, junction_extra=_flow_from("left")),
+})  # fmt: skip

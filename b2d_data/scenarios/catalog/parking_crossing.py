@@ -20,8 +20,16 @@ import logging
 import math
 
 from b2d_data.format.transform import Vector3D
-from b2d_data.maps import LaneType
+from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car, random_walker
+from b2d_data.scenarios.catalog.layout import (
+    STRAIGHTISH,
+    Layout,
+    leftmost_beside_parking,
+    parking_ahead,
+    register_layouts,
+    rightmost,
+)
 from b2d_data.scenarios.catalog.road_geometry import move_along, neighbour, offset_transform
 from b2d_data.scenarios.controllers import WalkerController, park
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
@@ -137,3 +145,22 @@ class ParkingCrossingPedestrian(Scenario):
                 if actor_id is not None:
                     self.destroy(actor_id)
         return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _parked_car_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """ParkingCrossingPedestrian: a parking lane on the right around a car ``distance`` m after the trigger."""
+    return parking_ahead((distance - 2.0, distance + 2.0, distance + 7.0))(town, wp)
+
+
+register_layouts({
+    "ParkingCrossingPedestrian": Layout("parking_lane", "rightmost lane with a parking lane on the right 34–52 m "
+                                        "(or leftmost with one on the left) "
+                                        "ahead, 100 m junction-free", rightmost, clear_after=100.0,
+                                        extra=parking_ahead((34.0, 40.0, 46.0, 52.0)), max_turn=STRAIGHTISH,
+                                        reach_param="distance", reach_ok=_parked_car_at,
+                                        directions={"right": rightmost, "left": leftmost_beside_parking},
+                                        extra_sides=("right",)),
+})  # fmt: skip

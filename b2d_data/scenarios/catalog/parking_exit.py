@@ -14,9 +14,10 @@ import logging
 
 from b2d_data.format.rig import EGO_HALF_EXTENT
 from b2d_data.format.transform import Transform
-from b2d_data.maps import LaneType, Waypoint
+from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_parked_car
-from b2d_data.scenarios.catalog.road_geometry import move_along, neighbour, offset_transform
+from b2d_data.scenarios.catalog.layout import Layout, any_lane, register_layouts
+from b2d_data.scenarios.catalog.road_geometry import is_driving, move_along, neighbour, offset_transform
 from b2d_data.scenarios.controllers import LaneFollowingAgent, park
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance
@@ -100,3 +101,36 @@ class ParkingExit(Scenario):
     def on_end(self) -> None:
         """Back to the normal spawn spacing."""
         self.ctx.sim.background.change_road_behavior(spawn_dist=15.0)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _parking_slot(town: Map, wp: Waypoint) -> bool:
+    """A parking lane on the right that extends 14 m back and forward."""
+    return _slot_beside(wp, "right")
+
+
+def _left_slot(wp: Waypoint) -> bool:
+    """A driving lane with a parking lane on its left that extends 14 m back and forward (a one-way road's left
+    kerb; a two-way road's left lane is the opposite one)."""
+    return is_driving(wp) and _slot_beside(wp, "left")
+
+
+def _slot_beside(wp: Waypoint, side: str) -> bool:
+    parking = neighbour(wp, side)
+    if parking is None or not parking.lane_type & LaneType.PARKING:
+        return False
+    for forward in (True, False):
+        end = move_along(parking, 14.0, forward=forward)
+        if end is None or not end.lane_type & LaneType.PARKING:
+            return False
+    return True
+
+
+register_layouts({
+    "ParkingExit": Layout("parking_lane", "a parking lane right of a driving lane (or left of it), 40 m "
+                          "junction-free", any_lane,
+                          clear_before=0.0, clear_after=40.0, pre=(0.0, 0.0), extra=_parking_slot,
+                          directions={"right": any_lane, "left": _left_slot}, extra_sides=("right",)),
+})  # fmt: skip

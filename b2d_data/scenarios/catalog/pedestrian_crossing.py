@@ -18,7 +18,8 @@ from b2d_data.format.transform import Transform, Vector3D
 from b2d_data.maps import LaneType
 from b2d_data.scenarios.catalog.actor_choices import random_walker
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
-from b2d_data.scenarios.catalog.road_geometry import find_side_lane, offset_transform
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
+from b2d_data.scenarios.catalog.road_geometry import JunctionLane, find_side_lane, offset_transform
 from b2d_data.scenarios.catalog.turning_route import road_side_offset
 from b2d_data.scenarios.controllers import WalkerController
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
@@ -126,3 +127,26 @@ class PedestrianCrossing(JunctionScenario):
         if not all(w.gone or w.actor_id is None for w in self.walkers):
             return ScenarioStatus.RUNNING
         return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _sidewalk_at_entry(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Junction entries with a sidewalk on the right and no parking lane before it (where PedestrianCrossing's
+    group waits; parked cars would stop the walkers)."""
+    current = conn.entry
+    while True:
+        right = current.get_right_lane()
+        if right is None or right.lane_id * current.lane_id <= 0 or right.lane_type & LaneType.PARKING:
+            return []
+        if right.lane_type & LaneType.SIDEWALK:
+            return [{}]
+        current = right
+
+
+register_layouts({
+    "PedestrianCrossing": Layout(
+        "sidewalk_junction", "a junction entry with a sidewalk on the right", turns=("straight", "left", "right"),
+        junction_extra=_sidewalk_at_entry, trigger_offset=(4.0, 10.0)),
+})  # fmt: skip

@@ -31,6 +31,7 @@ from __future__ import annotations
 import logging
 
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, LightSchedule, light_states, lights_of_lane
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioStatus, register
 from b2d_data.scenarios.triggers import WaitEndIntersection
 from b2d_data.sim.api import Snapshot, TrafficLightState
@@ -88,3 +89,9 @@ class PriorityAtJunction(JunctionScenario):
         """Give the lights back (TrafficLightFreezer.terminate), also when the route ends first."""
         if self.lights is not None:
             self.lights.release()
+
+
+register_layouts({
+    "PriorityAtJunction": Layout("signalized_junction", "a signalised junction the route drives through",
+                                 turns=LAYOUT_TURNS, signalized=True),
+})  # fmt: skip

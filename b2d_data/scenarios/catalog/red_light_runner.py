@@ -24,7 +24,14 @@ from b2d_data.scenarios.catalog.junctions import (
     light_states,
     lights_of_lane,
 )
-from b2d_data.scenarios.catalog.road_geometry import connection, entries_from, line_intersection, offset_transform
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
+from b2d_data.scenarios.catalog.road_geometry import (
+    JunctionLane,
+    connection,
+    entries_from,
+    line_intersection,
+    offset_transform,
+)
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import Timer, TimeToArrivalTrigger, WaitEndIntersection
@@ -158,3 +165,25 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
         """Release the lights."""
         if self.lights is not None:
             self.lights.release()
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def red_light_runner_directions(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Directions whose straight crossing meets the ego: left/right for a straight ego, opposite for a left turn."""
+    directions = ("left", "right") if conn.turn == "straight" else ("opposite",) if conn.turn == "left" else ()
+    out = []
+    for direction in directions:
+        for entry in entries_from(lanes, conn.entry, direction):
+            if connection(lanes, entry, "straight") is not None:
+                out.append({"direction": {"value": direction}})
+                break
+    return out
+
+
+register_layouts({
+    "OppositeVehicleRunningRedLight": Layout(
+        "signalized_junction", "a signalised junction crossed straight (or turning left) with a straight crossing "
+        "entry", turns=("straight", "left"), signalized=True, junction_extra=red_light_runner_directions),
+})  # fmt: skip

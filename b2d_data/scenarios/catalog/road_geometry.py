@@ -101,6 +101,22 @@ def find_side_lane(wp: Waypoint, side: str, lane_type: LaneType) -> Waypoint | N
         current = other
 
 
+def walk_to_sidewalk(wp: Waypoint, side: str) -> list[Waypoint] | None:
+    """The lanes from ``wp`` to ``side`` up to the first sidewalk or the road's edge, over lanes of any type and
+    direction (LB2.0 DynamicObjectCrossing's walk, object_crash_vehicle.py); None where the walk would go round in a
+    circle: lanes ±1 are each other's left lane, so walking left across the centre line never reaches a sidewalk
+    (the reference's loop does not end there)."""
+    walk = [wp]
+    while not walk[-1].lane_type & LaneType.SIDEWALK:
+        other = neighbour(walk[-1], side)
+        if other is None:
+            break
+        if any(other.lane_id == w.lane_id for w in walk):
+            return None
+        walk.append(other)
+    return walk
+
+
 def same_direction_lanes(wp: Waypoint) -> list[Waypoint]:
     """Every driving lane of the road section that carries traffic like ``wp`` (scenario_helper.get_same_dir_lanes)."""
     lanes = [wp]

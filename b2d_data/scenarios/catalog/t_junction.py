@@ -8,6 +8,7 @@ than 200 m, so the scenario normally lasts until the route ends.
 from __future__ import annotations
 
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import JunctionLane
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance
@@ -34,3 +35,18 @@ class TJunction(JunctionScenario):
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """SUCCESS after 200 m."""
         return ScenarioStatus.SUCCESS if self._after.check(self.ctx.ego(snapshot)) else ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _three_arms(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """Junctions where three roads meet (a T)."""
+    return [{}] if len({lane.entry.road_id for lane in lanes}) == 3 else []
+
+
+register_layouts({
+    "T_Junction": Layout(
+        "t_junction", "a junction of three roads that the route crosses", turns=("left", "right", "straight"),
+        junction_extra=_three_arms, approach=(30.0, 38.0), departure=(22.0, 30.0), trigger_offset=(20.0, 26.0)),
+})  # fmt: skip

@@ -8,7 +8,8 @@ sirens on, as in LB2.0 (both types share one ``_initialize_actors`` there).
 
 from __future__ import annotations
 
-from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
+from b2d_data.scenarios.catalog.red_light_runner import OppositeVehicleRunningRedLight, red_light_runner_directions
 from b2d_data.scenarios.framework import ScenarioSetupError, register
 from b2d_data.sim.api import Snapshot
 
@@ -37,3 +38,13 @@ class OppositeVehicleTakingPriority(OppositeVehicleRunningRedLight):
 
     def on_end(self) -> None:
         """No lights to release."""
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "OppositeVehicleTakingPriority": Layout(
+        "unsignalized_junction", "an unsignalised junction crossed straight (or turning left) with a straight "
+        "crossing entry", turns=("straight", "left"), signalized=False, junction_extra=red_light_runner_directions),
+})  # fmt: skip

@@ -27,6 +27,7 @@ from b2d_data.format.transform import Vector3D
 from b2d_data.maps import LaneType, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import random_walker
 from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import (
     find_side_lane,
     lateral_offset,
@@ -219,3 +220,14 @@ class VehicleTurningRoute(_TurningRouteScenario):
             if self.bicycle is not None:
                 self.destroy(self.bicycle)
         return ScenarioStatus.SUCCESS if self._after.check(ego) else ScenarioStatus.RUNNING
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "VehicleTurningRoutePedestrian": Layout(
+        "junction_turn", "a junction where the route turns", turns=("left", "right"), departure=(45.0, 50.0)),
+    "VehicleTurningRoute": Layout(
+        "junction_turn", "a junction where the route turns", turns=("left", "right"), departure=(50.0, 55.0)),
+})  # fmt: skip

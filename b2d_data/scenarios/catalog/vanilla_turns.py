@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, LightSchedule, light_states, lights_of_lane
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
 from b2d_data.sim.api import Snapshot, TrafficLightInfo, TrafficLightState
@@ -177,3 +178,29 @@ class VanillaNonSignalizedTurnEncounterStopsign(VanillaJunctionTurn):
             f"{self.name}: layout 'stop sign' missing: no stop sign governs road {entry.road_id} lane "
             f"{entry.lane_id} before junction {self.junction.id}"
         )
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    "VanillaSignalizedTurnEncounterRedLight": Layout(
+        "signalized_junction", "a signalised junction where the route turns", turns=("left", "right"),
+        signalized=True, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+    "VanillaNonSignalizedTurnEncounterStopsign": Layout(
+        "stop_sign_junction", "an unsignalised junction with a stop sign on the approach where the route turns",
+        turns=("left", "right"), signalized=False, stop_sign=True, approach=(28.0, 36.0), departure=(18.0, 26.0),
+        trigger_offset=(3.0, 5.0)),
+    "VanillaNonSignalizedTurn": Layout(
+        "unsignalized_junction", "an unsignalised junction where the route turns", turns=("left", "right"),
+        signalized=False, approach=(28.0, 36.0), departure=(18.0, 26.0), trigger_offset=(3.0, 5.0)),
+    # bench2drive220's geometry (routes 25968 and 25975 on Town07, measured on the dense route: the route starts
+    # 9.8–10.2 m before the junction, the trigger 7.0 m after the start, 2.8–3.2 m before the junction): the route
+    # starts 10 m before the junction and the trigger is the keypoint 2 or 4 m before it, so the ego, starting from
+    # rest, meets the 5 s of green at the stop line. With the trigger 14–19 m before the junction (approach 16–22 m)
+    # an ego that stopped for crossing cars on its way could still have its tail over the line when all lights
+    # turned red (3 of 20 routes).
+    "VanillaSignalizedTurnEncounterGreenLight": Layout(
+        "signalized_junction", "a signalised junction where the route turns", turns=("left", "right"),
+        signalized=True, approach=(9.0, 10.0), departure=(24.0, 30.0), trigger_offset=(6.0, 8.0)),
+})  # fmt: skip

@@ -20,11 +20,14 @@ from __future__ import annotations
 import logging
 from typing import ClassVar
 
-from b2d_data.maps import LaneType, Waypoint
+from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_car_with_doors
 from b2d_data.scenarios.catalog.flows import ActorFlow
+from b2d_data.scenarios.catalog.layout import STRAIGHTISH, Layout, register_layouts, two_way_single
 from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
+from b2d_data.scenarios.catalog.obstacles_placement import opposite_flow_room, opposite_flow_room_at
 from b2d_data.scenarios.catalog.road_geometry import (
+    move_along,
     move_before_junction,
     neighbour,
     offset_transform,
@@ -144,3 +147,34 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         if self.first_id is None:
             return None
         return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction)
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+def _door_side_lane(town: Map, wp: Waypoint) -> bool:
+    """A parking lane (or wide shoulder) on the right where the car may stand (37–59 m after the trigger), and room
+    for the opposite flow around it."""
+    ahead: Waypoint | None = move_along(wp, 37.0, step=37.0)
+    for _ in range(4):
+        if ahead is None or side_lane(ahead, "right") is None:
+            return False
+        ahead = move_along(ahead, 7.0, step=7.0)
+    return opposite_flow_room(town, wp)
+
+
+def _door_side_lane_at(town: Map, wp: Waypoint, distance: float) -> bool:
+    """:func:`_door_side_lane` for a car ``distance`` m after the trigger."""
+    for d in (distance, distance + 5.0):
+        ahead = move_along(wp, d, step=5.0)
+        if ahead is None or side_lane(ahead, "right") is None:
+            return False
+    return opposite_flow_room_at(town, wp, distance)
+
+
+register_layouts({
+    "VehicleOpensDoorTwoWays": Layout("parking_lane", "one lane each way with a parking lane (or a shoulder of "
+                                      "2 m) on the right 37–59 m ahead, 115 m junction-free", two_way_single,
+                                      clear_after=115.0, extra=_door_side_lane, max_turn=STRAIGHTISH,
+                                      reach_param="distance", reach_ok=_door_side_lane_at),
+})  # fmt: skip

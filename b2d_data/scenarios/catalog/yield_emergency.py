@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 
 from b2d_data.scenarios.catalog.actor_choices import SIREN_LIGHTS, random_emergency_vehicle
+from b2d_data.scenarios.catalog.layout import STRAIGHTISH, Layout, multi_lane_any, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
     offset_transform,
@@ -146,3 +147,18 @@ class YieldToEmergencyVehicle(Scenario):
         if self.ev is None or self.ev not in self.actors:
             return None
         return ScenarioHint(self.xml_type, self.ev, self.ev, direction="left")
+
+
+# ------------------------------------------------------------------------------------------------ placement
+
+
+register_layouts({
+    # Longer than the others: the scenario may last 10 s after the trigger, ~200 m on a fast road. The vehicle
+    # starts ``distance`` m behind the trigger and closes in at 25 km/h (7 m/s): each metre further back takes the
+    # ego up to four metres further (at 100 km/h) before the vehicle is near and the 10 s have passed. Generated
+    # highways have no 600 m without a ramp junction, so the lengthened stretch may cross junctions straight on.
+    "YieldToEmergencyVehicle": Layout("multi_lane", "two same-direction lanes, 35 m behind and 200 m ahead "
+                                      "junction-free", multi_lane_any, clear_before=35.0, clear_after=200.0,
+                                      max_turn=STRAIGHTISH, length=230.0, reach_param="distance",
+                                      reach_ahead=4.0, reach_behind=1.0, reach_through_junctions=True),
+})  # fmt: skip

@@ -54,6 +54,8 @@ CANDIDATE_SPACING = 20.0
 RUN_CAP = 1000.0
 #: A dense route may stray this far from the planned lane path before the candidate is rejected (m).
 MAX_ROUTE_DEVIATION = 1.5
+#: When no place gives a route with its first draw, each is drawn again up to this many times.
+REDRAWS = 5
 
 
 class PlacementError(ValueError):
@@ -532,6 +534,18 @@ def make_routes(
         if route is not None:
             routes.append(route)
             usable.append(candidates[i])
+    # no place worked with its first draw (a town with a single place, e.g. one highway exit): redraw each a few
+    # times, as the draws (approach, departure, parameters) decide whether the planner's route stays on the lanes
+    for _ in range(REDRAWS if not usable and n > 0 else 0):
+        for i in order:
+            route = _route_for(town, candidates[i], rng, route_id(seed, scenario_type, 0), 1,
+                               pool[int(rng.integers(len(pool)))], ranges)  # fmt: skip
+            if route is not None:
+                routes.append(route)
+                usable.append(candidates[i])
+                break
+        if usable:
+            break
     if not usable and n > 0:
         raise PlacementError(
             f"{town.name}: none of the {len(candidates)} places with layout '{spec.name}' gives a valid "

@@ -156,3 +156,13 @@ def test_layouts_are_registered_beside_their_scenarios():
     with pytest.raises(ValueError, match="registered already"):
         register_layouts({"Accident": LAYOUTS["Accident"]})
     assert LAYOUTS["Accident"] is REGISTERED["Accident"]  # the failed call changed nothing
+
+
+def test_a_single_place_is_redrawn_when_its_first_draw_fails(tmp_path):
+    """Town100 has one highway exit; with seed 53 its first draw gives a planner route that leaves the planned lanes,
+    and make_routes gave up ('none of the 1 places ... gives a valid HighwayExit route'). It now redraws."""
+    town = load_opendrive(write_town("all", 0, tmp_path))
+    assert len(find_candidates(town, "HighwayExit")) == 1
+    routes = make_routes(town, "HighwayExit", 2, seed=53)
+    assert [r.scenario_type for r in routes] == ["HighwayExit", "HighwayExit"]
+    assert len({r.id for r in routes}) == 2

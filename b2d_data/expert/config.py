@@ -151,6 +151,12 @@ class ExpertConfig:
     #: A flow's car drives along the route within this distance (m) of the next ``flow_route_ahead`` m of it.
     flow_route_distance: float = 2.5
     flow_route_ahead: float = 40.0
+    #: A flow car behind the ego in its lane (within ``flow_follower_range`` m) may close in no faster than its bumper
+    #: gap less ``flow_follower_margin`` m per ``flow_follower_time`` s: the ego keeps at least that speed while it
+    #: waits for a lane change (expert.py, ``_flow_follower_floor``; a deviation from PDM-Lite).
+    flow_follower_range: float = 40.0
+    flow_follower_margin: float = 3.0
+    flow_follower_time: float = 2.5
 
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this

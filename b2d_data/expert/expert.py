@@ -135,7 +135,8 @@ class Expert:
             target_speed = min(target_speed, cfg.max_speed_in_junction)
         # the flow checks below act only while a scenario whose flow never brakes for the ego runs (its hint)
         flows = any(h.scenario_type in FLOW_TYPES for h in hints)
-        keep_up = self._flow_speed_along_route(snapshot, ego, route) if flows else 0.0
+        paths = {k: v for h in hints for k, v in h.paths.items()}
+        keep_up = self._flow_speed_along_route(snapshot, ego, route, paths) if flows else 0.0
         if keep_up > target_speed:
             # A deviation from PDM-Lite: a flow that never brakes for the ego (LB2.0's ActorFlow) and drives where
             # the ego drives is driven with at its own speed, even above the speed limit (LB2.0 scores no speeding),
@@ -144,11 +145,15 @@ class Expert:
 
         if gate is not None:
             target_speed = min(target_speed, gate.step(snapshot.vehicles(), ego, route, target_speed).target_speed)
+        if flows:
+            # waiting for a gap to change lanes (the gate slows down toward one, or stops at the last point) in a
+            # lane whose flow never brakes: the car behind would run into the ego (route 53130004, HighwayExit on
+            # Town100, seed 53: hit from behind while slowing in the flow's lane before the exit lane)
+            target_speed = max(target_speed, min(self._flow_follower_floor(snapshot, ego), speed_limit * 1.5))
         obstacle = self.obstacles.step(snapshot, ego, route, hints, target_speed)
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
         else:
-            paths = {k: v for h in hints for k, v in h.paths.items()}
             hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows, paths)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
         merging = merge_hint(hints)
@@ -354,10 +359,13 @@ class Expert:
         result.brake = target == 0.0
         return result
 
-    def _flow_speed_along_route(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute) -> float:
+    def _flow_speed_along_route(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute,
+                                paths: Mapping[int, np.ndarray] | None = None) -> float:
         """The highest speed of the cars of a scenario's flow within ``detection_radius`` that drive along the route
         from ``flow_route_ahead`` metres behind the ego to as far ahead (within ``leading_max_yaw_difference`` of
-        its heading there and ``flow_route_distance`` of it); 0 when there is none."""
+        its heading there and ``flow_route_distance`` of it), or whose hinted path joins the route within the
+        ``flow_route_ahead`` m ahead of the ego (a flow the ego turns into: its cars come up from behind the junction
+        exit, off the route behind the ego); 0 when there is none."""
         cfg = self.config
         flow = [v for v in snapshot.vehicles() if v.role_name == _SCENARIO_ROLE and v.base_type != "bicycle"
                 and v.speed() >= cfg.other_vehicle_slow_speed
@@ -369,6 +377,7 @@ class Expert:
         end = route.index + cfg.points(cfg.flow_route_ahead)
         points = route.points[begin:end:step, :2]
         headings = route.headings[begin:end:step]
+        ahead = (route.index - begin) // step
         best = 0.0
         for v in flow:
             d = np.hypot(points[:, 0] - v.location.x, points[:, 1] - v.location.y)
@@ -376,7 +385,28 @@ class Expert:
             diff = abs((headings[k] - v.transform.rotation.yaw + 180.0) % 360.0 - 180.0)
             if d[k] < cfg.flow_route_distance and diff < cfg.leading_max_yaw_difference:
                 best = max(best, v.speed())
+            elif paths and v.id in paths and _path_joins(paths[v.id], points[ahead:], headings[ahead:], cfg):
+                best = max(best, v.speed())
         return best
+
+    def _flow_follower_floor(self, snapshot: Snapshot, ego: ActorState) -> float:
+        """The lowest speed that keeps every flow car behind the ego in its lane ``flow_follower_time`` s from
+        closing its bumper gap to ``flow_follower_margin`` m (0 when none follows within ``flow_follower_range``)."""
+        cfg = self.config
+        yaw = math.radians(ego.transform.rotation.yaw)
+        c, s = math.cos(yaw), math.sin(yaw)
+        floor = 0.0
+        for v in snapshot.vehicles():
+            if v.role_name != _SCENARIO_ROLE or v.id == ego.id or v.base_type == "bicycle":
+                continue
+            dx, dy = v.location.x - ego.location.x, v.location.y - ego.location.y
+            along, across = dx * c + dy * s, -dx * s + dy * c
+            diff = abs((v.transform.rotation.yaw - ego.transform.rotation.yaw + 180.0) % 360.0 - 180.0)
+            if along >= 0.0 or -along > cfg.flow_follower_range or abs(across) > 1.8 or diff > 30.0:
+                continue
+            gap = -along - ego.bounding_box.extent.x - v.bounding_box.extent.x
+            floor = max(floor, v.speed() - max(0.0, gap - cfg.flow_follower_margin) / cfg.flow_follower_time)
+        return floor
 
     def _flow_cars(self, ego: ActorState, route: DenseRoute, nearby: list[ActorState], leading: set[int],
                    hits: set[int], initial_speed: float,
@@ -474,6 +504,20 @@ FLOW_TYPES = frozenset({
 
 #: ``role_name`` of the actors a scenario spawns (``scenarios.framework.SCENARIO_ROLE``; the expert is privileged).
 _SCENARIO_ROLE = "scenario"
+
+
+def _path_joins(path: np.ndarray, points: np.ndarray, headings: np.ndarray, cfg: ExpertConfig) -> bool:
+    """Whether a flow car's path ((N, 2), from the car on) runs along the route ``points`` (within
+    ``flow_route_distance`` of one, heading within ``leading_max_yaw_difference`` of the route's there)."""
+    if path.shape[0] < 2 or points.shape[0] == 0:
+        return False
+    d = np.hypot(path[:, None, 0] - points[None, :, 0], path[:, None, 1] - points[None, :, 1])
+    i, k = np.unravel_index(int(np.argmin(d)), d.shape)
+    if d[i, k] >= cfg.flow_route_distance:
+        return False
+    j = min(i, path.shape[0] - 2)
+    yaw = math.degrees(math.atan2(path[j + 1, 1] - path[j, 1], path[j + 1, 0] - path[j, 0]))
+    return abs((headings[k] - yaw + 180.0) % 360.0 - 180.0) < cfg.leading_max_yaw_difference
 
 
 def _scenario_vehicles(snapshot: Snapshot) -> bool:

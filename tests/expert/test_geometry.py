@@ -468,3 +468,38 @@ def test_braking_forecast_stops_short_and_real_extents(make_route, make_vehicle)
     assert route.index == 0  # the route cursor is restored
     real = with_extents(go, ego, margin=0.1)
     assert np.allclose(real.extents, [2.55, 1.16, 0.75]) and real.centres is go.centres
+
+
+def test_a_flow_car_behind_in_the_ego_lane_sets_a_speed_floor(make_vehicle):
+    from types import SimpleNamespace
+
+    from b2d_data.expert.expert import Expert
+
+    ego = make_vehicle(1, 0.0, 0.0, speed=5.0, role="hero")
+
+    def floor(*others) -> float:
+        snapshot = SimpleNamespace(vehicles=lambda: [ego, *others])
+        return Expert._flow_follower_floor(SimpleNamespace(config=CFG), snapshot, ego)
+
+    # 15 m behind at 15 m/s: bumper gap 15 - 2.4 - 2.4 = 10.2 m; closing to 3 m in 2.5 s allows 7.2 / 2.5 = 2.88 m/s
+    # of speed difference: floor 12.12 m/s
+    assert floor(make_vehicle(7, -15.0, 0.0, speed=15.0, role="scenario")) == pytest.approx(15.0 - 7.2 / 2.5)
+    # within 3 m of bumper gap: the follower's own speed
+    assert floor(make_vehicle(7, -7.0, 0.0, speed=15.0, role="scenario")) == pytest.approx(15.0)
+    assert floor(make_vehicle(7, -45.0, 0.0, speed=15.0, role="scenario")) == 0.0  # beyond the 40 m range
+    assert floor(make_vehicle(7, -15.0, 3.5, speed=15.0, role="scenario")) == 0.0  # the next lane
+    assert floor(make_vehicle(7, -15.0, 0.0, speed=15.0, role="background")) == 0.0  # brakes for the ego
+    assert floor(make_vehicle(7, 15.0, 0.0, speed=15.0, role="scenario")) == 0.0  # ahead
+
+
+def test_a_flow_path_joins_the_route_where_it_runs_along_it():
+    from b2d_data.expert.expert import _path_joins
+
+    route = np.stack([np.arange(0.0, 40.0), np.full(40, 0.5)], axis=1)
+    headings = np.zeros(40)
+    along = np.stack([np.arange(-30.0, 30.0), np.zeros(60)], axis=1)
+    crossing = np.stack([np.full(40, 10.0), np.arange(-20.0, 20.0)], axis=1)
+    beside = np.stack([np.arange(-30.0, 30.0), np.full(60, 4.0)], axis=1)
+    assert _path_joins(along, route, headings, CFG)  # 0.5 m off the route, same heading
+    assert not _path_joins(crossing, route, headings, CFG)  # meets it at 90°
+    assert not _path_joins(beside, route, headings, CFG)  # 3.5 m away: the next lane

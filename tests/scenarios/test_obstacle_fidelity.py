@@ -451,3 +451,18 @@ def test_vehicle_opens_door_left_anchors_the_flow_two_lanes_left(tmp_path):
     assert {wp.lane_id for wp in flow.waypoints} == {1}
     assert flow.waypoints[0].transform.location.x == pytest.approx(290.0, abs=1.0)
     assert flow.waypoints[-1].transform.location.x == pytest.approx(110.0, abs=1.0)
+
+
+def test_dynamic_object_crossing_leaves_crossing_space_as_the_walker_sets_off(town):
+    # object_crash_vehicle.py DynamicObjectCrossing._create_behavior: after the TTA / min-distance trigger the
+    # sequence runs LeaveCrossingSpace(self._collision_wp) in route mode, then KeepVelocity moves the walker;
+    # _collision_wp is the ego lane's point abreast of the blocker (ours: lane_waypoint, the TTA reference too)
+    _, scenario = build(town, "DynamicObjectCrossing")
+    sim = _TurningSim()
+    scenario.ctx = replace(scenario.ctx, sim=sim)
+    scenario.walker = 99  # as start() would have spawned it
+    far = ego_at(scenario.trigger_waypoint.transform)
+    scenario.update(far)
+    assert sim.background.calls == []
+    scenario.update(ego_at(scenario.lane_waypoint.transform))  # at the point: the TTA trigger fires
+    assert sim.background.calls == [("leave_crossing_space", (scenario.lane_waypoint,))]

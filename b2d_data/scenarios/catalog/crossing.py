@@ -140,6 +140,8 @@ class DynamicObjectCrossing(Scenario):
             return ScenarioStatus.RUNNING
         if self._walk is None:
             if self._tta.check(ego):
+                # LB2.0 (route mode): LeaveCrossingSpace(self._collision_wp) as the walker sets off
+                self.ctx.sim.background.leave_crossing_space(self.lane_waypoint)
                 self._start_walk()
             return ScenarioStatus.RUNNING
         if not self._removed:

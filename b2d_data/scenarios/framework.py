@@ -27,7 +27,7 @@ import numpy as np
 
 from b2d_data.format import leaderboard as lb
 from b2d_data.format.scenario_types import SCENARIO_TYPES
-from b2d_data.format.transform import Transform
+from b2d_data.format.transform import Location, Transform
 from b2d_data.scenarios.criteria.base import FAILURE, RUNNING, SUCCESS, Criterion, Infraction
 from b2d_data.scenarios.criteria.route_criteria import SWITCH_ACTOR_BLOCKED
 from b2d_data.scenarios.triggers import BUILD_DISTANCE, horizontal_distance, route_point_reached, trigger_route_index
@@ -52,6 +52,10 @@ log = logging.getLogger(__name__)
 SCENARIO_TIMEOUT = 240.0
 #: Role name of every actor a scenario spawns.
 SCENARIO_ROLE = "scenario"
+#: Roles of the actors a scenario may remove from the place of one of its own (background traffic, parked cars).
+FREEABLE_ROLES = frozenset({"background", "parked"})
+#: They are removed within this distance (m) of the place (a car's length either way).
+FREE_PLACE_RADIUS = 5.0
 
 
 class ScenarioStatus(str, Enum):
@@ -296,8 +300,30 @@ class Scenario:
             if actor_id is not None:
                 self.actors.append(actor_id)
                 return actor_id
+        # Background traffic and parked cars are ours to move: a scenario actor whose place one of them took would
+        # otherwise fail the clip (route 61220001 on Town100, seed 61: a parked car on the red-light runner's spot)
+        if self._free_place(transform.location):
+            actor_id = self.ctx.sim.try_spawn_actor(spec, transform)
+            if actor_id is not None:
+                self.actors.append(actor_id)
+                return actor_id
         loc = transform.location
         raise ScenarioSetupError(f"{self.name}: cannot spawn {type_id} near ({loc.x:.1f}, {loc.y:.1f}): place taken")
+
+    def _free_place(self, location: Location, radius: float = FREE_PLACE_RADIUS) -> int:
+        """Remove the background vehicles and parked cars within ``radius`` m of ``location``; how many went."""
+        gone = 0
+        for actor in self.ctx.sim.snapshot().actors.values():
+            if actor.role_name in FREEABLE_ROLES and actor.location.distance_2d(location) < radius:
+                try:
+                    self.ctx.sim.destroy_actor(actor.id)
+                    gone += 1
+                except SimulatorError:
+                    pass  # gone meanwhile
+        if gone:
+            log.info("%s: removed %d background/parked car(s) from (%.1f, %.1f) for its actor", self.name, gone,
+                     location.x, location.y)
+        return gone
 
     def destroy(self, actor_id: int) -> None:
         """Remove one of the scenario's actors (ignored when it is already gone)."""

@@ -285,3 +285,24 @@ def test_overlapping_scenario_timeouts_the_last_writer_wins(route, monkeypatch):
     assert blocked_at == pytest.approx(160.25)
     assert manager.statuses["RecorderForTests_1"] is ScenarioStatus.SUCCESS
     assert manager.statuses["RecorderForTests_2"] is None  # still running when the route ended
+
+
+def test_a_scenario_actor_takes_its_place_from_background_traffic_not_from_other_scenario_actors(route):
+    from b2d_data.scenarios.framework import ScenarioSetupError
+    from b2d_data.sim.api import ActorSpec
+    from b2d_data.sim.builtin.world import BuiltinSimulator
+
+    car = "vehicle.lincoln.mkz_2020"
+    place = route.waypoints[40].transform
+    at = Transform(Location(place.location.x, place.location.y, place.location.z + 0.2), place.rotation)
+    with BuiltinSimulator(route.waypoints[0].map, seed=0) as sim:
+        ctx = ScenarioContext(sim=sim, map=route.waypoints[0].map, route=route, config=config_at(route, 40),
+                              rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+        scenario = Recorder(ctx)
+        background = sim.spawn_actor(ActorSpec(car, role_name="background"), at)
+        sim.tick()  # the place is taken in the world the scenario sees
+        actor = scenario.spawn(car, at)  # the background car 0 m away is removed, the place is ours
+        assert background not in sim.actor_ids() and actor in sim.actor_ids() and actor in scenario.actors
+        with pytest.raises(ScenarioSetupError, match="place taken"):
+            scenario.spawn(car, at)  # a scenario actor stands there now: never removed
+        assert actor in sim.actor_ids()

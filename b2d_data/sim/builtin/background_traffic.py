@@ -58,6 +58,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ROLE_NAME = "background"
+#: A background car that has stood this many ticks (2 s) in a lane narrower than 2.25 m is removed.
+NARROW_LANE_TICKS = 40
 
 
 @dataclass
@@ -106,6 +108,7 @@ class _Vehicle:
     source_key: tuple[Any, ...] = ()
     junction_id: int | None = None
     still_ticks: int = 0
+    narrow_ticks: int = 0  # ticks standing in a lane narrower than a car (a taper): it will not move again
     location: Location = field(default_factory=Location)  # last known (spawn point until the next tick)
     lane_offset: int = 0  # road vehicles: the ego-relative lane they were spawned on (LB2.0 keys them so)
 
@@ -430,6 +433,7 @@ class BackgroundTrafficManager:
             veh = self._vehicles[vid]
             moving = snapshot.actors[vid].speed() > 0.1
             veh.still_ticks = 0 if moving or out.reason in ("light", "stopped", "stop_sign") else veh.still_ticks + 1
+            veh.narrow_ticks = veh.narrow_ticks + 1 if out.reason == "narrow_lane" and not moving else 0
 
     # -- internals: population -----------------------------------------------------------------------------
     def _manage(self, snapshot: Snapshot) -> None:
@@ -462,6 +466,11 @@ class BackgroundTrafficManager:
             else:
                 far = dist > max(100.0, r_max + 40.0)
             if veh.still_ticks > stuck and dist > 15.0:
+                far = True
+            if veh.narrow_ticks > NARROW_LANE_TICKS:
+                # standing in a lane's taper (our lane followers do not change lanes before their lane ends, TM's
+                # do): it never moves again and half blocks the next lane (route 61430013 on Town100, seed 61: the
+                # ego stood behind two such cars until TickRuntime)
                 far = True
             wp = veh.agent.path.waypoints[0]
             if veh.junction_id is not None or wp.is_junction:

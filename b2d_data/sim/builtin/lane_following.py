@@ -573,7 +573,8 @@ class TrafficDriver:
         v0 = agent.target_speed
         if 0.05 < bend_speed < v0:
             v0 = bend_speed  # slow down for bends (TM does too); a target of 0 stays an order to stop
-        if width.size and width[0] < 2.25:
+        narrow = bool(width.size and width[0] < 2.25)
+        if narrow:
             v0 = 0.0  # lanes narrower than 2.25 m: background vehicles stand still (LB2.0)
         if v0 <= 0.05:
             accel, reason = idm_accel(v, 0.0, None, 0.0, p), "stopped"
@@ -617,14 +618,16 @@ class TrafficDriver:
                         accel, reason = a, "light" if info is not None else "stop_sign"
                     break
         if v0 <= 0.05:
-            reason = "stopped"  # ordered to stand still, whatever else is in the way
+            # ordered to stand still, whatever else is in the way; on a lane that has narrowed (the taper at the end
+            # of an acceleration lane) for good
+            reason = "narrow_lane" if narrow else "stopped"
         # the next junction: ask for it when close and free to go, or wait at its entry
         junction = None
         if record is not None:
             jid, entry, exit_, keys = record
             dist_entry = float(arc[entry] - s_self) - half_len if entry < len(arc) else math.inf
             close = dist_entry < max(12.0, v * v / (2.0 * p.comfort_decel) + 8.0)
-            blocked_by_signal = reason in ("light", "stop_sign", "stopped")
+            blocked_by_signal = reason in ("light", "stop_sign", "stopped", "narrow_lane")
             # don't block the box: enter only if the car can stop behind a slow leader past the junction exit;
             # otherwise wait at the entry (merely not asking the arbiter would let it roll in unreserved and
             # stand across the junction, where it can close a gridlock loop through the lanes it blocks). A car

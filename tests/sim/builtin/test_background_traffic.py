@@ -248,3 +248,33 @@ def test_no_car_is_born_in_front_of_a_background_car_that_cannot_stop_for_it():
     assert not stops([car(1, -20.0, 0.0, 0.0, 11.0)])  # the ego: _too_close_ahead decides for it
     # a car born nearer in the same update is not in the snapshot yet (route 29000009: born at 11 m/s 11 m behind)
     assert stops([], pending=[_Newborn(Location(-11.0, 0.0, 0.0), 0.0, 11.0)])
+
+
+def test_a_car_standing_in_a_lane_taper_is_removed_after_2_s_even_near_the_ego():
+    from types import SimpleNamespace
+
+    from b2d_data.format.transform import Location, Rotation, Transform
+    from b2d_data.sim.builtin.background_traffic import (
+        NARROW_LANE_TICKS,
+        BackgroundSettings,
+        BackgroundTrafficManager,
+        _Vehicle,
+    )
+
+    def recycled(narrow_ticks: int, still_ticks: int = 0) -> bool:
+        # a road car 8 m ahead of the ego: far from every radius, so only the taper rule can remove it
+        agent = SimpleNamespace(path=SimpleNamespace(waypoints=[SimpleNamespace(is_junction=False)]))
+        veh = _Vehicle(5, "road", agent, narrow_ticks=narrow_ticks, still_ticks=still_ticks)
+        gone: list[int] = []
+        manager = SimpleNamespace(settings=BackgroundSettings(), _vehicles={5: veh}, _junctions=[])
+        manager._radii = lambda speed: BackgroundTrafficManager._radii(manager, speed)
+        manager._location = lambda snapshot, vid: Location(8.0, 0.0, 0.0)
+        manager._destroy = gone.append
+        ego = SimpleNamespace(transform=Transform(Location(0.0, 0.0, 0.0), Rotation(yaw=0.0)), speed=lambda: 0.0)
+        BackgroundTrafficManager._recycle(manager, SimpleNamespace(), ego)
+        return gone == [5]
+
+    assert NARROW_LANE_TICKS == 40  # 2 s at 20 Hz
+    assert recycled(41)
+    assert not recycled(40)
+    assert not recycled(0, still_ticks=10_000)  # merely stuck within 15 m of the ego: kept (the older rule)

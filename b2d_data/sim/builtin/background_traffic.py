@@ -58,6 +58,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ROLE_NAME = "background"
+#: Within this distance (m) of its route point the ego counts as on the route's lane for lane offsets (one lane over).
+ROUTE_LANE_TOLERANCE = 5.0
 #: A background car that has stood this many ticks (2 s) in a lane narrower than 2.25 m is removed.
 NARROW_LANE_TICKS = 40
 
@@ -882,8 +884,16 @@ class BackgroundTrafficManager:
         return lo + int(np.argmin(d))
 
     def _ego_waypoint(self, snapshot: Snapshot, ego: Any) -> Waypoint | None:
+        """The route's lane beside the ego while the ego is within a lane of it, else the ego's own lane.
+
+        Lane offsets (road spawns, removed lanes) count from the route's lane, as BackgroundActivity keys its lanes:
+        an ego that moved over (yielding to an emergency vehicle, passing an obstacle) must not make the lane a
+        scenario removed count as a free neighbour (route 67430004 on Town100, seed 67: a car born in the lane
+        removed for the ambulance held it behind the ego until the scenario ended as not yielded).
+        """
         wp = self._route[self._ego_index]
-        if wp.transform.location.distance_2d(ego.transform.location) < 2.0:
+        gap = wp.transform.location.distance_2d(ego.transform.location)
+        if gap < 2.0 or (gap < ROUTE_LANE_TOLERANCE and not wp.is_junction):
             return wp
         return self._map.get_waypoint(ego.transform.location)
 

@@ -278,3 +278,26 @@ def test_a_car_standing_in_a_lane_taper_is_removed_after_2_s_even_near_the_ego()
     assert recycled(41)
     assert not recycled(40)
     assert not recycled(0, still_ticks=10_000)  # merely stuck within 15 m of the ego: kept (the older rule)
+
+
+def test_lane_offsets_count_from_the_route_lane_while_the_ego_is_one_lane_over():
+    from types import SimpleNamespace
+
+    from b2d_data.format.transform import Location, Rotation, Transform
+    from b2d_data.sim.builtin.background_traffic import ROUTE_LANE_TOLERANCE, BackgroundTrafficManager
+
+    route_wp = SimpleNamespace(transform=Transform(Location(0.0, 0.0, 0.0), Rotation(yaw=0.0)), is_junction=False)
+    own_lane = object()
+    manager = SimpleNamespace(_route=[route_wp], _ego_index=0,
+                              _map=SimpleNamespace(get_waypoint=lambda location: own_lane))  # fmt: skip
+
+    def lane(y: float, junction: bool = False):
+        route_wp.is_junction = junction
+        ego = SimpleNamespace(transform=Transform(Location(0.0, y, 0.0), Rotation(yaw=0.0)))
+        return BackgroundTrafficManager._ego_waypoint(manager, SimpleNamespace(), ego)
+
+    assert ROUTE_LANE_TOLERANCE == 5.0
+    assert lane(0.5) is route_wp  # on its lane
+    assert lane(3.5) is route_wp  # one 3.5 m lane over (yielding, passing): still the route's lane
+    assert lane(7.0) is own_lane  # two lanes over: where it is
+    assert lane(3.5, junction=True) is own_lane  # in a junction the lanes are the ego's own

@@ -518,19 +518,17 @@ def make_routes(
     order = [int(i) for i in rng.permutation(len(candidates))]
     routes: list[Route] = []
     usable: list[Candidate] = []
+
+    def draw(candidate: Candidate) -> Route | None:
+        """A route at ``candidate`` with fresh draws, numbered after the routes made so far."""
+        k = len(routes)
+        return _route_for(town, candidate, rng, route_id(seed, scenario_type, k), k + 1,
+                          pool[int(rng.integers(len(pool)))], ranges)  # fmt: skip
+
     for i in order:
         if len(routes) >= n:
             break
-        k = len(routes)
-        route = _route_for(
-            town,
-            candidates[i],
-            rng,
-            route_id(seed, scenario_type, k),
-            k + 1,
-            pool[int(rng.integers(len(pool)))],
-            ranges,
-        )
+        route = draw(candidates[i])
         if route is not None:
             routes.append(route)
             usable.append(candidates[i])
@@ -538,8 +536,7 @@ def make_routes(
     # times, as the draws (approach, departure, parameters) decide whether the planner's route stays on the lanes
     for _ in range(REDRAWS if not usable and n > 0 else 0):
         for i in order:
-            route = _route_for(town, candidates[i], rng, route_id(seed, scenario_type, 0), 1,
-                               pool[int(rng.integers(len(pool)))], ranges)  # fmt: skip
+            route = draw(candidates[i])
             if route is not None:
                 routes.append(route)
                 usable.append(candidates[i])
@@ -555,17 +552,7 @@ def make_routes(
     attempts = 0
     while len(routes) < n and attempts < 20 * n:
         attempts += 1
-        k = len(routes)
-        candidate = usable[k % len(usable)]
-        route = _route_for(
-            town,
-            candidate,
-            rng,
-            route_id(seed, scenario_type, k),
-            k + 1,
-            pool[int(rng.integers(len(pool)))],
-            ranges,
-        )
+        route = draw(usable[len(routes) % len(usable)])
         if route is not None:
             routes.append(route)
     if len(routes) < n:

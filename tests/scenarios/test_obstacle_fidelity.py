@@ -36,9 +36,10 @@ def town(tmp_path_factory):
     return load_opendrive(write_town("all", 0, tmp_path_factory.mktemp("towns")))
 
 
-def build(town, scenario_type: str, **params: str):
-    """The first generated route of ``scenario_type`` and its scenario, XML ``params`` (tag → value) overridden."""
-    route = make_routes(town, scenario_type, 1, seed=0)[0]
+def build(town, scenario_type: str, index: int = 0, **params: str):
+    """Generated route ``index`` (seed 0) of ``scenario_type`` and its scenario, XML ``params`` (tag → value)
+    overridden."""
+    route = make_routes(town, scenario_type, index + 1, seed=0)[index]
     config = route.scenarios[0]
     other = dict(config.other_parameters)
     other.update({tag: {"value": value} for tag, value in params.items()})
@@ -266,11 +267,7 @@ def test_red_light_runner_conflict_point_is_where_the_entry_lines_cross(town):
     # the ego enters heading -90 (a line x = x_entry) and the adversary's lane runs at yaw 0/180 (a line
     # y = y_adversary), so the point is (x_entry, y_adversary) (we took where the ego's route meets the adversary's
     # path, 0.5 m off).
-    route = make_routes(town, "OppositeVehicleRunningRedLight", 4, seed=0)[2]
-    dense = DenseRoute.from_route(town, route)
-    ctx = ScenarioContext(sim=None, map=town, route=dense, config=route.scenarios[0],  # type: ignore[arg-type]
-                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
-    scenario = scenario_class("OppositeVehicleRunningRedLight")(ctx)
+    _, scenario = build(town, "OppositeVehicleRunningRedLight", index=2)
     assert scenario.direction == "right"
     assert scenario.ego_entry.transform.rotation.yaw % 360.0 == pytest.approx(270.0)
     assert scenario.spawn_waypoint.transform.rotation.yaw % 180.0 == pytest.approx(0.0, abs=1e-6)
@@ -302,11 +299,7 @@ def test_the_red_light_runner_drops_its_forced_velocity_at_its_first_collision(t
     from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack
     from b2d_data.sim.api import CollisionEvent
 
-    route = make_routes(town, "OppositeVehicleRunningRedLight", 4, seed=0)[2]
-    dense = DenseRoute.from_route(town, route)
-    ctx = ScenarioContext(sim=None, map=town, route=dense, config=route.scenarios[0],  # type: ignore[arg-type]
-                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
-    scenario = scenario_class("OppositeVehicleRunningRedLight")(ctx)
+    _, scenario = build(town, "OppositeVehicleRunningRedLight", index=2)
     recorder = _ControlRecorder()
     scenario.ctx = replace(scenario.ctx, sim=recorder)
     scenario.adversary = 7

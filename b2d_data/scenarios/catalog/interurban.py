@@ -191,18 +191,26 @@ def _interurban_turn(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -
     return any(town.speed_limit(e) > INTERURBAN_MIN_LIMIT for e in opposite)
 
 
-def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
-    """The opposite entry's straight lane as the flow: source 70 m before the junction, sink 40 m after it."""
-    for entry in entries_from(lanes, conn.entry, "opposite"):
+def _straight_flow(conn: JunctionLane, lanes: list[JunctionLane], side: str,
+                   back: float) -> dict[str, dict[str, str]] | None:
+    """The flow's ends on the first ``side`` entry's straight lane across the junction: source ``back`` m before it
+    (at least 50 m of it), sink 40 m after it; None when no such entry has them."""
+    for entry in entries_from(lanes, conn.entry, side):
         straight = connection(lanes, entry, "straight")
         if straight is None:
             continue
-        source = walk_back_to_source(straight.entry, 70.0)
+        source = walk_back_to_source(straight.entry, back)
         sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
         if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
             continue
-        return [{"start_actor_flow": xml_location(source), "end_actor_flow": xml_location(sink)}]
-    return []
+        return {"start_actor_flow": xml_location(source), "end_actor_flow": xml_location(sink)}
+    return None
+
+
+def _interurban_flow(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
+    """The opposite entry's straight lane as the flow: source 70 m before the junction, sink 40 m after it."""
+    ends = _straight_flow(conn, lanes, "opposite", 70.0)
+    return [ends] if ends is not None else []
 
 
 def _onto_interurban(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -> bool:
@@ -224,17 +232,8 @@ def _onto_interurban(town: Map, conn: JunctionLane, lanes: list[JunctionLane]) -
 def _interurban_two_flows(conn: JunctionLane, lanes: list[JunctionLane]) -> list[dict[str, dict[str, str]]]:
     """Flow 1 on the left entry's straight lane, 60 m before the junction to 40 m after it (flow 2 runs back on the
     lanes beside it, into the ego's exit lane)."""
-    for entry in entries_from(lanes, conn.entry, "left"):
-        straight = connection(lanes, entry, "straight")
-        if straight is None:
-            continue
-        source = walk_back_to_source(straight.entry, 60.0)
-        sink = move_along(straight.exit, 40.0, step=CHECK_STEP)
-        if sink is None or source.transform.location.distance_2d(straight.entry.transform.location) < 50.0:
-            continue
-        return [{"direction": {"value": "right"}, "start_actor_flow": xml_location(source),
-                 "end_actor_flow": xml_location(sink)}]  # fmt: skip
-    return []
+    ends = _straight_flow(conn, lanes, "left", 60.0)
+    return [{"direction": {"value": "right"}, **ends}] if ends is not None else []
 
 
 register_layouts({

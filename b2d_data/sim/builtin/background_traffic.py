@@ -58,6 +58,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 ROLE_NAME = "background"
+#: A car is born only where every car behind it in its lane can close their speed difference at this rate (m/s²)
+#: before it is this close (m): the same comfortable rate the newborn's own speed is bounded by.
+BIRTH_DECEL, BIRTH_GAP = 3.0, 10.0
 #: Within this distance (m) of its route point the ego counts as on the route's lane for lane offsets (one lane over).
 ROUTE_LANE_TOLERANCE = 5.0
 #: A background car that has stood this many ticks (2 s) in a lane narrower than 2.25 m is removed.
@@ -665,15 +668,15 @@ class BackgroundTrafficManager:
         # never faster than what stops comfortably (3 m/s²) short of the 10 m gap behind whatever is ahead,
         # nor before the next junction (whose reservation it may not get)
         path.extend()
-        free = self._free_distance(snapshot, path) - 10.0
+        free = self._free_distance(snapshot, path) - BIRTH_GAP
         junction = path.first_junction()
         if junction is not None:
             free = min(free, junction[1] * PATH_STEP - 5.0)
-        initial = min(initial, math.sqrt(2.0 * 3.0 * max(0.0, free)))
+        initial = min(initial, math.sqrt(2.0 * BIRTH_DECEL * max(0.0, free)))
         # any same-direction lane, not only the ego's: an overtaking ego returns to its lane (route 29000004 on
         # Town100, seed 29: a car born at 2.7 m/s 25 m ahead in the lane the ego came back to was hit at 20 m/s)
-        heading = abs((yaw - ego_actor.transform.rotation.yaw + 180.0) % 360.0 - 180.0)
-        if source == "road" and heading <= 45.0 and self._too_close_ahead(ego_actor, place, initial):
+        if source == "road" and _yaw_difference(yaw, ego_actor.transform.rotation.yaw) <= 45.0 and \
+                self._too_close_ahead(ego_actor, place, initial):
             return None
         if self._stops_a_follower(snapshot, place, yaw, initial):
             return None
@@ -704,8 +707,7 @@ class BackgroundTrafficManager:
         is within 10 m of the car.
         """
         rel_x, _ = _ego_frame(ego, place)
-        closing = ego.speed() ** 2 - initial**2
-        return rel_x > 0.0 and closing > 0.0 and rel_x - 10.0 < closing / (2.0 * 3.0)
+        return rel_x > 0.0 and _cannot_close(ego.speed(), initial, rel_x)
 
     def _stops_a_follower(self, snapshot: Snapshot, place: Location, yaw: float, initial: float) -> bool:
         """Whether a car born at ``place`` at ``initial`` m/s would stand in front of a background car of its lane
@@ -723,9 +725,9 @@ class BackgroundTrafficManager:
         for loc, f_yaw, speed in followers:
             dx, dy = loc.x - place.x, loc.y - place.y
             behind, across = -(dx * c + dy * s), abs(-dx * s + dy * c)
-            if behind <= 0.0 or across > 1.5 or abs((f_yaw - yaw + 180.0) % 360.0 - 180.0) > 30.0:
+            if behind <= 0.0 or across > 1.5 or _yaw_difference(f_yaw, yaw) > 30.0:
                 continue
-            if speed**2 - initial**2 > 2.0 * 3.0 * max(0.0, behind - 10.0):
+            if _cannot_close(speed, initial, behind):
                 return True
         return False
 
@@ -954,8 +956,18 @@ def _ego_frame(ego: Any, loc: Location) -> tuple[float, float]:
 
 def _same_heading(ego: Any, actor: Any, tolerance: float = 45.0) -> bool:
     """Does ``actor`` head the ego's way (yaw within ``tolerance`` degrees)?"""
-    d = (actor.transform.rotation.yaw - ego.transform.rotation.yaw + 180.0) % 360.0 - 180.0
-    return abs(d) <= tolerance
+    return _yaw_difference(actor.transform.rotation.yaw, ego.transform.rotation.yaw) <= tolerance
+
+
+def _yaw_difference(a: float, b: float) -> float:
+    """The absolute difference of two headings in degrees, in [0, 180]."""
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def _cannot_close(speed_behind: float, speed_ahead: float, gap: float) -> bool:
+    """Whether a car ``gap`` m behind another cannot close their speed difference at ``BIRTH_DECEL`` before it is
+    within ``BIRTH_GAP`` m of it (the rule every newborn car is checked against, for the ego and its followers)."""
+    return speed_behind**2 - speed_ahead**2 > 2.0 * BIRTH_DECEL * max(0.0, gap - BIRTH_GAP)
 
 
 def _same_direction_lanes(wp: Waypoint) -> list[tuple[int, Waypoint]]:

@@ -32,7 +32,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 #: The hint types handled here.
-MERGE_TYPES = ("MergerIntoSlowTraffic", "MergerIntoSlowTrafficV2", "EnterActorFlowV2")
+#: EnterActorFlow publishes its sink only on an on-ramp, where the ego changes from its own lane into the flow's.
+MERGE_TYPES = ("MergerIntoSlowTraffic", "MergerIntoSlowTrafficV2", "EnterActorFlowV2", "EnterActorFlow")
 #: The flow's lane is followed back from the sink this far (m), and on past it this far.
 LANE_BACK, LANE_AHEAD = 250.0, 30.0
 #: A vehicle is in the flow's lane within this distance of its centre line (m) and this heading difference (deg).

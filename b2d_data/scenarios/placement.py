@@ -31,6 +31,7 @@ from b2d_data.scenarios.catalog.layout import (
     KEYPOINT_SPACING,
     LAYOUTS,
     Layout,
+    layout_of,
     signal_lanes,
     through_junction,
 )
@@ -79,6 +80,13 @@ class Candidate:
     trigger: Waypoint
     connection: JunctionLane | None = None
     fixed: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+    #: The layout the candidate was found with (None: the type's default in ``LAYOUTS``).
+    layout_spec: Layout | None = None
+
+    @property
+    def spec(self) -> Layout:
+        """The layout this candidate was found with."""
+        return self.layout_spec if self.layout_spec is not None else LAYOUTS[self.scenario_type]
 
     @property
     def location(self) -> Location:
@@ -87,7 +95,7 @@ class Candidate:
 
     def path(self, rng: np.random.Generator) -> tuple[list[Waypoint], Waypoint] | None:
         """The planned route as lane waypoints 2 m apart and its trigger waypoint (None when the lanes end)."""
-        spec = LAYOUTS[self.scenario_type]
+        spec = self.spec
         step = KEYPOINT_SPACING
         if self.connection is None and spec.path_builder is not None:
             built = spec.path_builder(self.trigger, rng, spec.length)
@@ -113,16 +121,16 @@ class Candidate:
     @property
     def is_straight(self) -> bool:
         """Its route follows the trigger's lane (no junction, no path builder)."""
-        return self.connection is None and LAYOUTS[self.scenario_type].path_builder is None
+        return self.connection is None and self.spec.path_builder is None
 
     def draw_pre(self, rng: np.random.Generator) -> float:
         """Straight candidates: metres of route before the trigger."""
-        spec = LAYOUTS[self.scenario_type]
+        spec = self.spec
         return float(rng.uniform(*spec.pre)) if spec.pre[1] > 0 else 0.0
 
     def straight_path(self, pre: float, extra: float = 0.0) -> tuple[list[Waypoint], Waypoint] | None:
         """Straight candidates: ``pre`` m before the trigger and the layout's length (plus ``extra`` m) after it."""
-        spec = LAYOUTS[self.scenario_type]
+        spec = self.spec
         step = KEYPOINT_SPACING
         clear = spec.clear_after + extra
         back = lane_walk(self.trigger, pre, forward=False, step=step) if pre > 0 else [self.trigger]
@@ -137,11 +145,11 @@ class Candidate:
         return list(reversed(back)) + ahead[1:], self.trigger
 
 
-def _check_type(scenario_type: str) -> Layout:
+def _check_type(scenario_type: str, params: str = DEFAULT_PARAMS) -> Layout:
     if scenario_type != NO_SCENARIO:
         scenario_class(scenario_type)  # unknown types: error listing the known ones
     try:
-        return LAYOUTS[scenario_type]
+        return layout_of(scenario_type, params)
     except KeyError:
         raise PlacementError(f"no placement rule for scenario type {scenario_type!r}") from None
 
@@ -237,7 +245,7 @@ def _straight_candidates(town: Map, scenario_type: str, spec: Layout, params: Pa
             continue
         if spec.extra is not None and not _extra_holds(town, spec, wp, sides):
             continue
-        out.append(Candidate(scenario_type, spec.name, wp))
+        out.append(Candidate(scenario_type, spec.name, wp, layout_spec=spec))
     return out
 
 
@@ -281,17 +289,18 @@ def _junction_candidates(town: Map, scenario_type: str, spec: Layout) -> list[Ca
                 continue
             variants = spec.junction_extra(conn, lanes) if spec.junction_extra is not None else [{}]
             for fixed in variants:
-                out.append(Candidate(scenario_type, spec.name, conn.entry, conn, fixed))
+                out.append(Candidate(scenario_type, spec.name, conn.entry, conn, fixed, spec))
     return out
 
 
 def find_candidates(town: Map, scenario_type: str, params: str | ParamSet = DEFAULT_PARAMS) -> list[Candidate]:
     """Every place in ``town`` where ``scenario_type``'s layout exists for the parameter set, in a fixed order."""
-    spec = _check_type(scenario_type)
+    ranges = param_set(params)
+    spec = _check_type(scenario_type, ranges.name)
     if spec.is_junction:
         found = _junction_candidates(town, scenario_type, spec)
     else:
-        found = _straight_candidates(town, scenario_type, spec, param_set(params))
+        found = _straight_candidates(town, scenario_type, spec, ranges)
     log.info("%s: %d candidate places for %s", town.name, len(found), scenario_type)
     return found
 
@@ -342,7 +351,7 @@ def _fits(
     set_sides: int,
 ) -> bool:
     """A straight candidate holds the drawn parameters: its stretch reaches the actors and the drawn side."""
-    spec = LAYOUTS[candidate.scenario_type]
+    spec = candidate.spec
     trigger = candidate.trigger
     side = params.get("direction", {}).get("value")
     lane_ok = spec.directions[side] if spec.directions is not None and side in spec.directions else spec.lane_ok
@@ -430,7 +439,7 @@ def _route_for(
         return None
     params = params_set.draw(candidate.scenario_type, rng)
     params.update({k: dict(v) for k, v in candidate.fixed.items()})
-    spec = LAYOUTS[candidate.scenario_type]
+    spec = candidate.spec
     if candidate.is_straight:
         # far-out actors (training ranges) need a longer junction-free stretch and route than the layout's
         extra, outside = _reach_extra(candidate.scenario_type, spec, params)
@@ -503,7 +512,7 @@ def make_routes(
     if n < 0:
         raise ValueError(f"n must be >= 0, got {n}")
     ranges = param_set(params)
-    spec = _check_type(scenario_type)
+    spec = _check_type(scenario_type, ranges.name)
     pool = tuple(int(w) for w in weathers) if weathers is not None else WEATHER_IDS
     for w in pool:
         preset(w)  # unknown ids raise here, naming the valid ones

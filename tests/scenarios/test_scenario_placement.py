@@ -50,8 +50,10 @@ def test_candidates_exist_in_the_all_layouts_preset(town, scenario_type):
     candidates = find_candidates(town, scenario_type)
     assert candidates, f"no place for {scenario_type}"
     assert all(c.scenario_type == scenario_type and not c.trigger.is_junction for c in candidates)
-    if LAYOUTS[scenario_type].is_junction:
-        assert all(c.connection is not None and c.connection.turn in LAYOUTS[scenario_type].turns for c in candidates)
+    spec = candidates[0].spec  # the default parameter set's layout (EnterActorFlow: its training on-ramp one)
+    assert all(c.spec is spec for c in candidates)
+    if spec.is_junction:
+        assert all(c.connection is not None and c.connection.turn in spec.turns for c in candidates)
 
 
 def _in(value: str, lo: int, hi: int) -> bool:

@@ -9,24 +9,29 @@ off. The scenario ends when the ego gets within 2 m of a flow's sink, or after 2
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from typing import ClassVar
 
 from b2d_data.format.transform import Location
 from b2d_data.maps import Waypoint
+from b2d_data.scenarios.catalog import enter_flow_v2 as ramp
 from b2d_data.scenarios.catalog.flows import FlowScenario
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
-from b2d_data.scenarios.catalog.layout import Layout, register_layouts, xml_location
+from b2d_data.scenarios.catalog.layout import Layout, register_layouts, register_param_layouts, xml_location
 from b2d_data.scenarios.catalog.road_geometry import (
     JunctionLane,
     entries_from,
     flow_into_exit,
     lane_walk,
     move_along,
+    same_direction_driving_neighbour,
     same_direction_lanes,
+    same_lane,
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
-from b2d_data.sim.api import Snapshot
+from b2d_data.scenarios.param_ranges import TRAINING
+from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +77,18 @@ class EnterActorFlow(FlowScenario, JunctionScenario):
         self.after_junction = next(
             (float(k) for k, wp in enumerate(after) if wp.transform.location.distance_2d(target) < 4.0), 50.0
         )
+        #: The sink of the flow lane the ego changes into from a lane of its own (an on-ramp's acceleration lane);
+        #: None where the ego turns straight into a flow's lane.
+        self.merge_sink: Waypoint | None = self._merge_sink()
+
+    def _merge_sink(self) -> Waypoint | None:
+        exit_wp = self.ego_exit
+        if exit_wp is None or any(same_lane(wp, exit_wp) for path in self.paths for wp in path):
+            return None
+        left = same_direction_driving_neighbour(exit_wp, "left")
+        if left is None:
+            return None
+        return next((path[-1] for path in self.paths if any(same_lane(wp, left) for wp in path)), None)
 
     def _lane_point(self, tag: str) -> Waypoint:
         coords = [self.ctx.config.parameter(tag, axis) for axis in ("x", "y", "z")]
@@ -103,6 +120,14 @@ class EnterActorFlow(FlowScenario, JunctionScenario):
         ego = self.ctx.ego(snapshot)
         return ego is not None and any(ego.location.distance_2d(s.transform.location) < SINK_REACHED for s in self.sinks)
 
+    def hint(self) -> ScenarioHint | None:
+        """The flows' hint; on an on-ramp also the sink of the lane the ego merges into (merge gap acceptance)."""
+        hint = super().hint()
+        if hint is None or self.merge_sink is None:
+            return hint
+        sink = self.merge_sink.transform.location
+        return dataclasses.replace(hint, extra={**hint.extra, "sink_x": sink.x, "sink_y": sink.y, "sink_z": sink.z})
+
 
 # ------------------------------------------------------------------------------------------------ placement
 
@@ -131,4 +156,14 @@ register_layouts({
         "unsignalized_junction", "an unsignalised junction where the route turns right into a road that a left "
         "entry's straight lane continues on", turns=("right",), signalized=False, departure=(35.0, 45.0),
         junction_extra=_enter_flow),
+})  # fmt: skip
+# routes_training's 36 EnterActorFlow routes all join Town12's highway by on-ramps (ramps at 7-45 deg to it, flows
+# 145-317 m long at 15-20 m/s, 15-30 / 30-70 m apart): a non-yielding flow that dense is entered at its own speed from
+# a lane of one's own, not by a turn from a standstill (bench2drive220's routes, 12-19 m/s, include urban turns).
+register_param_layouts(TRAINING.name, {
+    "EnterActorFlow": Layout(
+        "highway_ramps", "an on-ramp whose lane runs on beside a highway (>= 80 km/h) lane after its junction (the "
+        "flows run on every highway lane)", turns=("straight", "left", "right"), junction_ok=ramp.dedicated_entry,
+        junction_extra=ramp.flow_beside, approach=ramp.APPROACH, departure=ramp.DEPARTURE,
+        trigger_offset=ramp.TRIGGER_OFFSET, merge_left_after=ramp.MERGE_AFTER),
 })  # fmt: skip

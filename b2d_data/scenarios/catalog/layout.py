@@ -111,6 +111,25 @@ def register_layouts(layouts: Mapping[str, Layout]) -> None:
         LAYOUTS[scenario_type] = layout
 
 
+#: Layouts that replace a type's :data:`LAYOUTS` entry under one parameter set, keyed (set name, type): where the
+#: reference's routes of that set put the type on other roads than our default layout (EnterActorFlow's 36
+#: routes_training routes all join Town12's highway by on-ramps; bench2drive220's include urban turns).
+PARAM_LAYOUTS: dict[tuple[str, str], Layout] = {}
+
+
+def register_param_layouts(params: str, layouts: Mapping[str, Layout]) -> None:
+    """Add layouts used instead of the default ones under the parameter set named ``params``."""
+    for scenario_type, layout in layouts.items():
+        if (params, scenario_type) in PARAM_LAYOUTS:
+            raise ValueError(f"a {params!r} layout for {scenario_type!r} is registered already")
+        PARAM_LAYOUTS[(params, scenario_type)] = layout
+
+
+def layout_of(scenario_type: str, params: str) -> Layout:
+    """The layout ``scenario_type`` uses under the parameter set named ``params`` (KeyError: none registered)."""
+    return PARAM_LAYOUTS.get((params, scenario_type)) or LAYOUTS[scenario_type]
+
+
 def multi_lane_left(wp: Waypoint) -> bool:
     """A driving lane with a same-direction driving lane on its left."""
     return is_driving(wp) and same_direction_driving_neighbour(wp, "left") is not None

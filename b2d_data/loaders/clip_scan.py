@@ -21,6 +21,7 @@ from typing import BinaryIO
 import numpy as np
 
 from b2d_data import coords
+from b2d_data.codecs import anno_json
 from b2d_data.codecs.anno_json import read_anno
 from b2d_data.codecs.format_info import read_format_info
 from b2d_data.format.errors import B2DFormatError
@@ -333,6 +334,13 @@ def scan_archive(root: Path, rel: str, list_members: bool = True) -> ClipScan:
                             continue
                         files.setdefault(modality, set()).add(num + 1 if modality == "expert" else num)
                         if modality == "anno":
+                            if member.size > anno_json.MAX_ANNO_BYTES:
+                                # Not read into memory: a compressed annotation is far smaller than its text.
+                                logger.warning(
+                                    "%s: cannot read the ego pose: %s is %d bytes, more than an annotation may be",
+                                    path, member.name, member.size,
+                                )  # fmt: skip
+                                break
                             fobj = tar.extractfile(member)
                             data = fobj.read() if fobj is not None else b""
                             try:

@@ -147,3 +147,23 @@ def test_missing_files_inside_the_clip_keep_its_length_and_are_reported(
     (missing,) = [r.getMessage() for r in caplog.records if "missing within" in r.getMessage()]
     assert missing.startswith(f"{clip}: 25 file(s) missing within frames 0..11: camera/depth_back/00004.png, ")
     assert missing.endswith("(+20 more)")
+
+
+def test_archive_scan_does_not_read_an_oversized_annotation_member(
+    corpus_copy: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from b2d_data.codecs import anno_json
+
+    clip = corpus_copy / str(CLIP_B)  # 6 frames
+    assert min(p.stat().st_size for p in (clip / "anno").iterdir()) > 100
+    pack_clip(clip)
+    shutil.rmtree(clip)
+    monkeypatch.setattr(anno_json, "MAX_ANNO_BYTES", 100)  # below every annotation member's size
+    with caplog.at_level("WARNING", logger="b2d_data.loaders.clip_scan"):
+        index, _ = CorpusIndex.build(corpus_copy)
+    b = _rows(index)[str(CLIP_B)]
+    frames = index.frames.slice(b["frame_start"], b["n_frames"]).to_pydict()
+    # The members are still listed as frames, but none was read for its pose.
+    assert b["n_frames"] == 6 and all(math.isnan(x) for x in frames["ego_x"])
+    skipped = [r.getMessage() for r in caplog.records if "more than an annotation may be" in r.getMessage()]
+    assert len(skipped) == 6 and f"{CLIP_B}/anno/00000.json.gz is " in skipped[0]

@@ -10,7 +10,9 @@ merged.json), a directory of per-process files (every ``*.json`` but merged.json
 ``b2d-eval run`` (its records, route file, route count and metric_info are used), or several files
 joined with ``+`` (``eval_0.json+eval_1.json``). ``--merge`` makes all RESULTS one set instead (handy
 with a shell glob). The table goes to stdout, every figure to the JSON file, and, when the routes are
-known, a bar chart of the abilities to ``<out stem>_abilities.png`` beside the JSON.
+known, a bar chart of the abilities to ``<out stem>_abilities.png`` beside the JSON. Without ``--out`` the JSON
+goes beside the first RESULT: ``<RESULT>_summary.json`` (``OUT/results`` → ``OUT/results_summary.json``),
+``<folder>/summary.json`` for a ``b2d-eval run`` folder, and the current folder only for a file the package ships.
 """
 
 from __future__ import annotations
@@ -26,12 +28,13 @@ from b2d_data.data import shipped_or_given
 from b2d_data.eval.junctions import MapJunctionProvider
 from b2d_data.eval.report import format_table, plot_abilities
 from b2d_data.eval.results import expand_result_argument, load_result_argument, load_result_set
-from b2d_data.eval.summary import EvalSettings, evaluate, summary_json
+from b2d_data.eval.summary import EvalSettings, SetSummary, evaluate, summary_json
 from b2d_data.format.errors import B2DFormatError
 from b2d_data.scenarios.route_xml import read_routes
 
 PROG = "b2d-eval"
-DEFAULT_OUT = Path("b2d_eval_summary.json")
+#: What the summary JSON is called beside a result set (``<name>_summary.json``).
+SUMMARY_SUFFIX = "_summary.json"
 
 
 def _argument_problem(args: argparse.Namespace) -> str | None:
@@ -83,6 +86,37 @@ def _eval_folders(args: argparse.Namespace) -> None:
             args.metric_dir = args.metric_dir[:1]
 
 
+def default_out(result: str) -> Path:
+    """Where the summary of RESULT goes without ``--out``: beside it, never into the current folder by surprise."""
+    from b2d_data.closed_loop.evaluator import read_settings
+    from b2d_data.data import bench2drive_dir
+
+    first = Path(result.split("+")[0])
+    if first.is_dir() and read_settings(first) is not None:
+        return first / "summary.json"  # what b2d-eval run writes at its end
+    resolved = shipped_or_given(first)
+    if resolved.resolve().parent == bench2drive_dir().resolve():
+        return Path(first.stem + SUMMARY_SUFFIX)  # not into the installed package: the folder the user is in
+    if first.is_dir():
+        return first.absolute().with_name(first.absolute().name + SUMMARY_SUFFIX)
+    return first.with_name(first.stem + SUMMARY_SUFFIX)
+
+
+def _abilities_hint(summaries: Sequence[SetSummary]) -> str:
+    """What to pass for the abilities, when no route XML was given."""
+    roots = [root for s in summaries if s.route_count is not None for root in s.route_count.collections]
+    if not roots or any(s.route_count is None or not s.route_count.collections for s in summaries):
+        return "No abilities (and no bar chart): pass --routes with the route XML the agent ran"
+    from b2d_data.collection.plan import PLANNED_ROUTES_DIR
+
+    files = sorted((roots[0] / PLANNED_ROUTES_DIR).glob("*.xml"))
+    stays = "the driving score stays over the routes the collection ran"
+    if len(roots) == 1 and len(files) == 1:
+        return f"No abilities (and no bar chart): add --routes {files[0]} for them ({stays})"
+    # --routes takes one file; a collection of several scenarios has one route file each.
+    return f"No abilities (and no bar chart): --routes with one XML holding all their routes adds them ({stays})"
+
+
 def summarise_eval_folder(folder: Path) -> None:
     """Print the Bench2Drive summary of a ``b2d-eval run`` folder and save it as ``<folder>/summary.json``."""
     args = _summary_parser(argparse.ArgumentParser().add_subparsers()).parse_args(
@@ -92,6 +126,8 @@ def summarise_eval_folder(folder: Path) -> None:
 
 
 def _run_summary(args: argparse.Namespace) -> int:
+    if args.out is None:
+        args.out = default_out(args.results[0])
     _eval_folders(args)
     n_sets = 1 if args.merge else len(args.results)
     # Bare names of shipped files (bench2drive220.xml, VAD_merged_results.json) work from any folder.
@@ -142,7 +178,7 @@ def _run_summary(args: argparse.Namespace) -> int:
         plot_abilities(summaries, png)
         print(f"Wrote {png}")
     else:
-        print("No abilities (and no bar chart): pass --routes with the route XML the agent ran")
+        print(_abilities_hint(summaries))
     return 0
 
 
@@ -188,7 +224,11 @@ def _summary_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--num-routes", type=int,
         help="denominator of driving score and success rate (default: routes in --routes, else 220)",
     )  # fmt: skip
-    summary.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"summary JSON to write (default {DEFAULT_OUT})")
+    summary.add_argument(
+        "--out", type=Path,
+        help="summary JSON to write (default: beside the first RESULT, <RESULT>_summary.json; <folder>/summary.json "
+        "for a b2d-eval run folder)",
+    )  # fmt: skip
     summary.add_argument("--names", nargs="+", help="column label of each result set")
     summary.add_argument("--strict", action="store_true", help="duplicate routes or a wrong record count are errors")
     summary.add_argument(

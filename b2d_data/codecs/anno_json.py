@@ -19,6 +19,11 @@ from b2d_data.format.errors import B2DFormatError
 
 _GZIP_MAGIC = b"\x1f\x8b"
 
+#: Largest decompressed annotation :func:`read_anno` accepts (bytes). Annotations of the largest towns are a few MB;
+#: the cap stops a small crafted file from inflating to gigabytes (300 KB of gzip held 300 MB of spaces). Read at
+#: call time, so setting ``anno_json.MAX_ANNO_BYTES`` changes it for every reader.
+MAX_ANNO_BYTES = 64 << 20
+
 
 class AnnoSchemaError(ValueError):
     """An annotation dict whose keys do not follow Bench2Drive's order (raised by the strict writer)."""
@@ -58,16 +63,50 @@ def write_anno(path: str | os.PathLike[str], anno: dict, *, strict: bool = False
     return Path(path).stat().st_size
 
 
-def read_anno(source: Source, *, name: str | os.PathLike[str] | None = None) -> dict:
-    """Decode ``NNNNN.json.gz`` (path or bytes) to the annotation dict; NaN and null values are kept as stored."""
+def gunzip_capped(data: bytes | memoryview, limit: int) -> bytes:
+    """Decompress a (multi-member) gzip stream, refusing to produce more than ``limit`` bytes.
+
+    Raises ``ValueError`` past the limit, ``EOFError`` when the stream is cut off and ``zlib.error`` on bad data.
+    """
+    out = bytearray()
+    rest: bytes | memoryview = data
+    while len(rest):
+        inflater = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)  # gzip header and trailer (CRC, length) checked
+        pending = rest
+        while not inflater.eof:
+            # In 1 MiB steps (no second buffer the size of the text); at most one byte over the limit is produced,
+            # which is enough to tell that it was exceeded.
+            chunk = inflater.decompress(pending, min(1 << 20, limit + 1 - len(out)))
+            pending = inflater.unconsumed_tail
+            out += chunk
+            if len(out) > limit:
+                raise ValueError(f"decompresses to more than {limit} bytes")
+            if not chunk and not pending:
+                raise EOFError("compressed data ended before the end-of-stream marker")
+        # Like gzip.decompress: further members may follow, and zero padding after the last one is ignored.
+        rest = inflater.unused_data.lstrip(b"\x00")
+    return bytes(out)
+
+
+def read_anno(source: Source, *, name: str | os.PathLike[str] | None = None, max_bytes: int | None = None) -> dict:
+    """Decode ``NNNNN.json.gz`` (path or bytes) to the annotation dict; NaN and null values are kept as stored.
+
+    The decompressed text may not exceed ``max_bytes`` (default :data:`MAX_ANNO_BYTES`).
+    """
     data, label = read_source(source, name)
     if bytes(data[:2]) != _GZIP_MAGIC:
         raise B2DFormatError(label, "not a gzip file (missing the 1F 8B magic)")
+    limit = MAX_ANNO_BYTES if max_bytes is None else max_bytes
     try:
-        raw = gzip.decompress(data)
+        raw = gunzip_capped(data, limit)
+    except ValueError as exc:
+        raise B2DFormatError(
+            label,
+            f"annotation {exc} (a gzip bomb, or an annotation larger than b2d_data.codecs.anno_json.MAX_ANNO_BYTES)",
+        ) from None
     except EOFError as exc:
         raise B2DFormatError(label, "truncated gzip stream") from exc
-    except (OSError, zlib.error) as exc:
+    except zlib.error as exc:
         raise B2DFormatError(label, f"invalid gzip data: {exc}") from exc
     try:
         anno = json.loads(raw.decode("utf-8"))

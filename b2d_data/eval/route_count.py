@@ -1,10 +1,11 @@
 """How many routes a result set is scored over, and why.
 
 Driving score and success rate are sums over the records divided by the routes the agent was meant to drive (a
-missing route counts 0). That count comes, first match wins, from ``--num-routes``, from the route XML
-(``--routes``), from the ``b2d-collect`` collection that wrote the records (its routes with a finished attempt in
-``run_log.jsonl``; without a run log beside them, one route per record), else from Bench2Drive's evaluation set of
-220 routes, the Leaderboard merge tool's fixed denominator.
+missing route counts 0). That count comes, first match wins, from ``--num-routes``, from the ``b2d-collect``
+collection that wrote the records (its routes with a finished attempt in ``run_log.jsonl``; a collection's route
+files list every planned attempt, most of which never run, so ``--routes`` does not override it), from the route
+XML (``--routes``), from b2d-collect records without their run log (one route per record), else from Bench2Drive's
+evaluation set of 220 routes, the Leaderboard merge tool's fixed denominator.
 """
 
 from __future__ import annotations
@@ -34,35 +35,53 @@ class RouteCount:
 
     value: int
     reason: str
+    #: The b2d-collect collection folder(s) the count comes from (empty for any other source).
+    collections: tuple[Path, ...] = ()
 
 
 def route_count(result_set: ResultSet, settings: EvalSettings) -> RouteCount:
     """The number of routes ``result_set`` is scored over, and why (see the module docstring for the order)."""
     if settings.num_routes is not None:
         return RouteCount(settings.num_routes, settings.num_routes_reason or "--num-routes")
+    records = result_set.records
+    collected = _collection_count(result_set, settings)
+    if collected is not None:
+        if settings.routes is None:
+            return collected
+        where = settings.routes_file if settings.routes_file is not None else "the route XML"
+        reason = (f"{collected.reason} (not the {len(settings.routes)} route(s) of {where}: a collection's route file "
+                  "lists every planned attempt)")  # fmt: skip
+        return RouteCount(collected.value, reason, collected.collections)
     if settings.routes is not None:
         where = settings.routes_file if settings.routes_file is not None else "the route XML"
         return RouteCount(len(settings.routes), f"the routes of {where}")
-    records = result_set.records
-    # One lookup per folder: a collection's results/ holds a file per route.
-    corpora: dict[Path, tuple[Path, int] | None] = {}
-    for path in result_set.sources:
-        folder = Path(path).resolve().parent
-        if folder not in corpora:
-            corpora[folder] = settings.collections(path) if settings.collections is not None else None
-    found = list(corpora.values())
-    if found and None not in found:
-        finished = dict(c for c in found if c is not None)
-        total = sum(finished.values())
-        return RouteCount(
-            max(total, len(records)),
-            f"b2d-collect collection {', '.join(str(r) for r in sorted(finished))}: {total} route(s) with a finished "
-            "attempt in run_log.jsonl",
-        )
     if records and all(isinstance(r.extra.get(COLLECT_EXTRA), dict) for r in records):
         return RouteCount(len(records), "b2d-collect records without their run_log.jsonl: one route per record")
     return RouteCount(
         BENCH2DRIVE_ROUTES,
         f"Bench2Drive's {BENCH2DRIVE_ROUTES} evaluation routes (bench2drive220); for other routes give --routes or "
         "--num-routes",
+    )
+
+
+def _collection_count(result_set: ResultSet, settings: EvalSettings) -> RouteCount | None:
+    """The count of the b2d-collect collection(s) every record file of ``result_set`` lies in, else None."""
+    if settings.collections is None or not result_set.sources:
+        return None
+    # One lookup per folder: a collection's results/ holds a file per route.
+    corpora: dict[Path, tuple[Path, int] | None] = {}
+    for path in result_set.sources:
+        folder = Path(path).resolve().parent
+        if folder not in corpora:
+            corpora[folder] = settings.collections(path)
+    found = list(corpora.values())
+    if None in found:
+        return None
+    finished = dict(c for c in found if c is not None)
+    total = sum(finished.values())
+    return RouteCount(
+        max(total, len(result_set.records)),
+        f"b2d-collect collection {', '.join(str(r) for r in sorted(finished))}: {total} route(s) with a finished "
+        "attempt in run_log.jsonl",
+        tuple(sorted(finished)),
     )

@@ -31,6 +31,7 @@ from scipy.signal import savgol_filter
 
 from b2d_data.format.errors import B2DFormatError
 from b2d_data.format.leaderboard import RouteRecord
+from b2d_data.format.names import is_safe_name
 
 # nuPlan comfort bounds as Bench2Drive uses them.
 MAX_ABS_MAG_JERK = 8.37  # m/s³
@@ -201,6 +202,12 @@ def driving_smoothness(
     missing: list[str] = []
     short: list[str] = []
     for record in records:
+        if record.save_name and not is_safe_name(str(record.save_name)):
+            # A results file's save_name is joined into a path: "../x" must not read outside metric_dir.
+            missing.append(
+                f"{metric_dir}/{record.save_name!r} (route {record.route_id}: save_name is not a plain name)"
+            )
+            continue
         path = metric_dir / str(record.save_name) / METRIC_FILE
         if not record.save_name or not path.is_file():
             missing.append(str(path))

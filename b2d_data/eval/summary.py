@@ -119,8 +119,14 @@ def evaluate(result_set: ResultSet, settings: EvalSettings, metric_dir: Path | N
     num_routes = count.value
     records = result_set.records
     missing_routes: list[str] = []
-    if settings.routes is not None:
-        missing_routes = _check_against_routes(result_set, settings.routes, settings.routes_file)
+    routes = settings.routes
+    if routes is not None:
+        missing_routes = _check_against_routes(result_set, routes, settings.routes_file)
+        if count.collections:
+            # A collection's route file also lists the attempts it never needed: they are neither missing nor
+            # crashed, so only the routes that ran are used (for the abilities).
+            ran = {r.route_number for r in records}
+            routes, missing_routes = [r for r in routes if r.id in ran], []
 
     for path, reason in result_set.skipped_files:
         warnings.append(f"skipped {path}: {reason}")
@@ -163,8 +169,8 @@ def evaluate(result_set: ResultSet, settings: EvalSettings, metric_dir: Path | N
             warnings.append(f"smoothness: {len(smoothness.too_short)} route(s) have fewer than 3 steps, left out")
 
     abilities = None
-    if settings.routes is not None:
-        abilities = compute_abilities(records, settings.routes, settings.junctions)
+    if routes is not None:
+        abilities = compute_abilities(records, routes, settings.junctions)
         warnings.extend(_unchecked_warnings(abilities))
     return SetSummary(
         result_set=result_set,

@@ -21,10 +21,31 @@ _CLIP_RE = re.compile(
     r"^(?P<scenario>T_Junction|[A-Za-z0-9]+)_(?P<town>Town\d+(?:HD)?)_Route(?P<route>\d+)_(?P<wtag>W[a-z]*)(?P<weather>\d*)$"
 )
 _ARCHIVE_SUFFIXES = (".tar.gz", ".tgz", ".tar")
+# One path component of ordinary characters; never "." or ".." (no leading dot) and no separator.
+_SAFE_NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,199}")
 
 
 class ClipNameError(ValueError):
     """A clip name that does not follow ``<Scenario>_<Town>_Route<id>_Weather<w>``."""
+
+
+class UnsafeNameError(ValueError):
+    """A name read from a file that could not be used in a file path as it is (``../x``, ``a/b``, ``.hidden``)."""
+
+
+def is_safe_name(value: str) -> bool:
+    """True when ``value`` is fit to be part of a file name: one path component of ordinary characters."""
+    return isinstance(value, str) and _SAFE_NAME_RE.fullmatch(value) is not None
+
+
+def check_safe_name(value: str, what: str) -> str:
+    """``value`` when it is fit to be part of a file name, else :class:`UnsafeNameError` naming ``what`` and it."""
+    if not is_safe_name(value):
+        raise UnsafeNameError(
+            f"{what} {value!r} is not a plain name (letters, digits, '_', '-', '.', not starting with '.'); "
+            "it would become part of a file path"
+        )
+    return value
 
 
 def is_town_name(text: str) -> bool:
@@ -47,6 +68,11 @@ class ClipName:
     town: str
     route_id: int
     weather_id: int | None
+
+    def __post_init__(self) -> None:
+        # A clip name becomes folder and file names (clips, results/, writer temporaries).
+        check_safe_name(self.scenario, "scenario")
+        check_safe_name(self.town, "town")
 
     @classmethod
     def parse(cls, text: str) -> ClipName:

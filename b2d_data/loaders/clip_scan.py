@@ -12,6 +12,7 @@ import logging
 import math
 import os
 import tarfile
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
@@ -20,6 +21,7 @@ from typing import BinaryIO
 import numpy as np
 
 from b2d_data import coords
+from b2d_data.codecs import anno_json
 from b2d_data.codecs.anno_json import read_anno
 from b2d_data.codecs.format_info import read_format_info
 from b2d_data.format.errors import B2DFormatError
@@ -155,16 +157,69 @@ def _pose_row(anno: dict) -> tuple[float, ...]:
 _NAN_POSE = (math.nan,) * len(POSE_COLUMNS)
 
 
-def _assemble(scan: ClipScan, files: dict[str, set[int]], poses: dict[int, tuple[float, ...]]) -> None:
-    # Frames run from the first to the last index seen in any modality, so a missing frame shows up as a row
-    # without files (and loading it names the missing file) instead of silently shifting the timeline.
-    seen = set().union(*[v for k, v in files.items() if k != "expert"]) if files else set()
-    if not seen:
+def frame_span(files: dict[str, set[int]]) -> tuple[int, int] | None:
+    """First and last frame of a clip: the frames most modality folders hold, widened to adjacent frames any holds.
+
+    A clip's folders agree on its frames, so one stray file (``anno/99999.json.gz``) cannot stretch the clip: the
+    span is set by the frames a majority of the folders hold, and only frames next to it (a last frame that some
+    folders lack) extend it. ``expert`` is left out, as its file names are shifted by one. None without frames.
+    """
+    counted = [frames for modality, frames in files.items() if modality != "expert" and frames]
+    if not counted:
+        return None
+    support = Counter(f for frames in counted for f in frames)
+    agreed = [f for f, n in support.items() if 2 * n > len(counted)] or list(support)
+    first, last = min(agreed), max(agreed)
+    while first - 1 in support:
+        first -= 1
+    while last + 1 in support:
+        last += 1
+    return first, last
+
+
+def _file_name(modality: str, frame: int) -> str:
+    folder, suffix = MODALITY_FILES[modality]
+    return f"{folder}/{frame - 1 if modality == 'expert' else frame:05d}{suffix}"
+
+
+def _report_disagreement(label: str, files: dict[str, set[int]], first: int, last: int) -> None:
+    """Warn (one line each) about files outside the clip's frames and files missing inside them."""
+    stray = sorted(
+        _file_name(m, f) for m, frames in files.items() if m != "expert" for f in frames if not first <= f <= last
+    )
+    if stray:
+        logger.warning(
+            "%s: %d stray file(s) outside the frames %d..%d that most modality folders hold are ignored: %s",
+            label, len(stray), first, last, _some(stray),
+        )  # fmt: skip
+    missing = sorted(
+        _file_name(m, f)
+        for m, frames in files.items()
+        if m != "expert" and frames
+        for f in range(first, last + 1)
+        if f not in frames
+    )
+    if missing:
+        logger.warning(
+            "%s: %d file(s) missing within frames %d..%d: %s", label, len(missing), first, last, _some(missing)
+        )
+
+
+def _some(names: list[str], shown: int = 5) -> str:
+    return ", ".join(names[:shown]) + (f" (+{len(names) - shown} more)" if len(names) > shown else "")
+
+
+def _assemble(scan: ClipScan, files: dict[str, set[int]], poses: dict[int, tuple[float, ...]], label: str) -> None:
+    # Frames run from the first to the last frame of the span, so a missing frame shows up as a row without files
+    # (and loading it names the missing file) instead of silently shifting the timeline.
+    span = frame_span(files)
+    if span is None:
         scan.frames = np.zeros(0, np.int32)
         scan.presence = {m: np.zeros(0, bool) for m in MODALITIES}
         scan.poses = {c: np.zeros(0) for c in POSE_COLUMNS}
         return
-    frames = np.arange(min(seen), max(seen) + 1, dtype=np.int32)
+    _report_disagreement(label, files, *span)
+    frames = np.arange(span[0], span[1] + 1, dtype=np.int32)
     scan.frames = frames
     scan.presence = {m: np.isin(frames, np.fromiter(files.get(m, ()), np.int64)) for m in MODALITIES}
     table = np.array([poses.get(int(f), _NAN_POSE) for f in frames], dtype=np.float64).reshape(-1, len(POSE_COLUMNS))
@@ -191,8 +246,9 @@ def scan_clip_dir(root: Path, rel: str, read_poses: bool = True) -> ClipScan:
                 nums = {n + 1 for n in nums}  # file −0001 holds frame 0
             files[modality] = nums
     poses: dict[int, tuple[float, ...]] = {}
-    if read_poses:
-        for frame in sorted(files.get("anno", ())):
+    span = frame_span(files)
+    if read_poses and span is not None:
+        for frame in sorted(f for f in files.get("anno", ()) if span[0] <= f <= span[1]):
             path = clip_dir / "anno" / f"{frame:05d}.json.gz"
             try:
                 poses[frame] = _pose_row(read_anno(path))
@@ -204,7 +260,7 @@ def scan_clip_dir(root: Path, rel: str, read_poses: bool = True) -> ClipScan:
         scan.format_version = info.format_version.value if info else ""
     except B2DFormatError as exc:
         logger.warning("%s", exc)
-    _assemble(scan, files, poses)
+    _assemble(scan, files, poses, str(clip_dir))
     return scan
 
 
@@ -278,6 +334,13 @@ def scan_archive(root: Path, rel: str, list_members: bool = True) -> ClipScan:
                             continue
                         files.setdefault(modality, set()).add(num + 1 if modality == "expert" else num)
                         if modality == "anno":
+                            if member.size > anno_json.MAX_ANNO_BYTES:
+                                # Not read into memory: a compressed annotation is far smaller than its text.
+                                logger.warning(
+                                    "%s: cannot read the ego pose: %s is %d bytes, more than an annotation may be",
+                                    path, member.name, member.size,
+                                )  # fmt: skip
+                                break
                             fobj = tar.extractfile(member)
                             data = fobj.read() if fobj is not None else b""
                             try:
@@ -289,7 +352,7 @@ def scan_archive(root: Path, rel: str, list_members: bool = True) -> ClipScan:
             raise B2DFormatError(path, f"not a readable tar.gz archive: {exc}") from exc
         reader.drain()
     scan.sha256 = reader.sha.hexdigest()
-    _assemble(scan, files, poses)
+    _assemble(scan, files, poses, str(path))
     return scan
 
 

@@ -80,6 +80,15 @@ class RawAnno(dict):
     """The raw annotation dict of a sample (``keep_anno``), listed per sample when batched."""
 
 
+class Sample(dict):
+    """One ``ClipDataset`` sample: a plain dict whose type makes torch's default collate batch it with :func:`collate`.
+
+    torch dispatches on a batch's first element, so a batch of samples, with or without frames skipped with
+    ``on_error="skip"`` (their ``BadFrame`` records, also dispatched here), gets the same batch from a plain
+    ``DataLoader(dataset, batch_size=...)`` as from :meth:`ClipDataset.loader`.
+    """
+
+
 def _collate_ragged(batch: Sequence[Ragged], *, collate_fn_map: Any = None) -> list[torch.Tensor]:
     return [torch.from_numpy(np.ascontiguousarray(v.view(np.ndarray))) for v in batch]
 
@@ -92,9 +101,16 @@ def _collate_raw(batch: Sequence[RawAnno], *, collate_fn_map: Any = None) -> lis
     return [dict(v) for v in batch]
 
 
+def collate_samples(batch: Sequence[Any], *, collate_fn_map: Any = None) -> Batch:
+    """torch default-collate hook for a batch of :class:`Sample` and skipped-frame records: :func:`collate`."""
+    return collate(batch)
+
+
 # torch's documented extension point for default_collate (see torch.utils.data.default_collate): these types are
 # ours alone, so registering them changes nothing for anyone else's data.
-default_collate_fn_map.update({Ragged: _collate_ragged, RaggedList: _collate_ragged_list, RawAnno: _collate_raw})
+default_collate_fn_map.update(
+    {Ragged: _collate_ragged, RaggedList: _collate_ragged_list, RawAnno: _collate_raw, Sample: collate_samples}
+)
 
 
 def mark_variable_fields(sample: dict[str, Any]) -> dict[str, Any]:
@@ -131,16 +147,16 @@ def _pad(values: list[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:
     return torch.from_numpy(out), torch.from_numpy(mask)
 
 
-def collate(batch: Sequence[dict[str, Any] | None], pad: bool = False) -> Batch:
+def collate(batch: Sequence[Any], pad: bool = False) -> Batch:
     """Batch samples into a dict of tensors.
 
     Fixed-size arrays are stacked to (B, ...); variable-size fields (:data:`VARIABLE_KEYS`) become lists of
     tensors, or, with ``pad=True``, zero-padded (B, N_max, ...) tensors plus a ``<key>_mask`` (B, N_max) —
-    ``map_polylines`` always stays a list of lists. Strings stay lists. ``None`` samples (frames skipped with
-    ``on_error="skip"``) are dropped and counted in ``skipped``; use ``functools.partial(collate, pad=True)``
-    as a ``collate_fn`` for padding.
+    ``map_polylines`` always stays a list of lists. Strings stay lists. Items that are not sample dicts (the
+    ``BadFrame`` records of frames skipped with ``on_error="skip"``, or None) are dropped and counted in
+    ``skipped``; use ``functools.partial(collate, pad=True)`` as a ``collate_fn`` for padding.
     """
-    samples = [s for s in batch if s is not None]
+    samples = [s for s in batch if isinstance(s, dict)]
     out = Batch(skipped=len(batch) - len(samples), batch_size=len(samples))
     if not samples:
         return out

@@ -15,6 +15,7 @@ from typing import Any
 import cv2
 import numpy as np
 from torch.utils.data import DataLoader, Dataset
+from torch.utils.data._utils.collate import default_collate_fn_map
 
 from b2d_data import coords
 from b2d_data.codecs import layout
@@ -32,7 +33,7 @@ from b2d_data.format.expert_actions import action_control
 from b2d_data.format.version import FORMAT_FILE
 from b2d_data.format.names import canonical_clip_prefix
 from b2d_data.format.rig import RADARS_V0, camera
-from b2d_data.loaders.collate import collate, mark_variable_fields
+from b2d_data.loaders.collate import Sample, collate, collate_samples, mark_variable_fields
 from b2d_data.loaders.hdmap import find_hdmap, load_hdmap_cached
 from b2d_data.loaders.index import CorpusIndex, open_index, presence_column
 from b2d_data.loaders.sample import (
@@ -55,12 +56,16 @@ _EXPECTED_ERRORS = (B2DFormatError, OSError, ValueError, KeyError, TypeError, In
 
 @dataclass(frozen=True)
 class BadFrame:
-    """A frame that could not be loaded (``on_error="skip"``)."""
+    """A frame that could not be loaded (``on_error="skip"``): what the dataset returns in its place."""
 
     index: int
     clip: str
     frame: int
     error: str
+
+
+# A batch whose first item is a skipped frame must reach the same collate as one that starts with a sample.
+default_collate_fn_map[BadFrame] = collate_samples
 
 
 def worker_init_fn(worker_id: int) -> None:
@@ -115,8 +120,9 @@ class ClipDataset(Dataset):
     Ego pose choice: boxes, LiDAR and the map are relative to the exact ego pose (``bounding_boxes[0].world2ego``);
     waypoints and route targets use ``pose_source`` (``exact`` by default; ``gnss`` reproduces what an agent sees
     at test time: GNSS x, y and compass). With ``on_error="skip"`` a frame that fails to load is logged, appended
-    to ``bad_frames`` (and to ``error_log`` as JSON lines, which also works from DataLoader workers) and
-    returned as None, which ``collate`` drops and counts.
+    to ``bad_frames`` (and to ``error_log`` as JSON lines, which also works from DataLoader workers) and its
+    :class:`BadFrame` record is returned instead of a sample; ``collate`` drops and counts it, also as torch's
+    default collate of a plain ``DataLoader(dataset, batch_size=...)``.
     """
 
     def __init__(
@@ -257,9 +263,9 @@ class ClipDataset(Dataset):
     ) -> DataLoader:
         """A DataLoader with this dataset's :func:`collate` (drops skipped frames; ``pad=True`` pads ragged fields).
 
-        A plain ``DataLoader(dataset, batch_size=...)`` works too (variable-size fields come back as lists); this
-        one also drops frames skipped with ``on_error="skip"``, pads on request, sends small tensors from the
-        workers by value and gives each worker one OpenCV / torch thread. ``kwargs`` go to ``DataLoader``.
+        A plain ``DataLoader(dataset, batch_size=...)`` gives the same batches (torch's default collate hands
+        samples to :func:`collate`: variable-size fields as lists, skipped frames dropped); this one also pads on
+        request and gives each worker one OpenCV / torch thread. ``kwargs`` go to ``DataLoader``.
         """
         kwargs.setdefault("worker_init_fn", worker_init_fn if num_workers else None)
         kwargs.setdefault("persistent_workers", num_workers > 0)
@@ -282,14 +288,14 @@ class ClipDataset(Dataset):
         row = int(self._rows[index])
         return self._clip_name[self._frame_clip[row]].decode(), int(self._frame_num[row])
 
-    def __getitem__(self, index: int) -> dict[str, Any] | None:
+    def __getitem__(self, index: int) -> Sample | BadFrame:
         if self._cv_pid != os.getpid():
             # Decoding parallelism comes from DataLoader workers; OpenCV's own threads would oversubscribe.
             cv2.setNumThreads(0)
             self._cv_pid = os.getpid()
         row = int(self._rows[index])
         try:
-            return mark_variable_fields(self._load(index, row))
+            return Sample(mark_variable_fields(self._load(index, row)))
         except _EXPECTED_ERRORS as exc:
             clip = int(self._frame_clip[row])
             err = (
@@ -303,21 +309,21 @@ class ClipDataset(Dataset):
                 if err is exc:
                     raise
                 raise err from exc
-            self._report(index, row, err)
-            return None
+            return self._report(index, row, err)
 
     # -------------------------------------------------------------------------------------------- loading
 
     def _clip_dir(self, clip: int) -> Path:
         return self.root / self._clip_path[clip].decode()
 
-    def _report(self, index: int, row: int, err: Exception) -> None:
+    def _report(self, index: int, row: int, err: Exception) -> BadFrame:
         bad = BadFrame(index, self._clip_name[self._frame_clip[row]].decode(), int(self._frame_num[row]), str(err))
         logger.warning("skipping frame %s/%05d: %s", bad.clip, bad.frame, bad.error)
         self.bad_frames.append(bad)
         if self.error_log is not None:
             with open(self.error_log, "a", encoding="utf-8") as f:
                 f.write(json.dumps(dataclasses.asdict(bad)) + "\n")
+        return bad
 
     def _load(self, index: int, row: int) -> dict[str, Any]:
         opts, frame_conv = self.options, self.options.frame

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from b2d_data.codecs.object_npz import load_object_npz
 from b2d_data.format.errors import B2DFormatError
 
 logger = logging.getLogger(__name__)
@@ -57,17 +58,12 @@ class HDMap:
         """Read and flatten a ``<Town>_HD_map.npz``; errors name the file."""
         path = Path(path)
         town = town or path.name.split("_")[0]
+        # The map is a pickle (Bench2Drive's layout), so it is read without letting it run code.
+        rows = load_object_npz(path, "arr")
         try:
-            with np.load(path, allow_pickle=True) as npz:
-                if "arr" not in npz.files:
-                    raise B2DFormatError(path, f"HD map npz has no 'arr' array (has {npz.files})")
-                roads = dict(npz["arr"])
-        except FileNotFoundError:
-            raise B2DFormatError(path, "HD map file does not exist") from None
-        except B2DFormatError:
-            raise
-        except Exception as exc:  # zip, pickle and shape errors all mean an unreadable map
-            raise B2DFormatError(path, f"not a readable HD map npz: {exc}") from exc
+            roads = dict(rows)
+        except (TypeError, ValueError) as exc:
+            raise B2DFormatError(path, f"not a readable HD map npz: 'arr' is not (road id, road) rows: {exc}") from exc
         lines: list[np.ndarray] = []
         types: list[int] = []
         try:

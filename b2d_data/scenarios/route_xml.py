@@ -20,6 +20,7 @@ from pathlib import Path
 from lxml import etree
 
 from b2d_data.format.errors import B2DFormatError
+from b2d_data.format.names import UnsafeNameError, check_safe_name
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import ROUTE_DEFAULT, XML_ATTRIBUTES, WeatherParameters, weather_id_of
 
@@ -116,10 +117,20 @@ def _parse_weathers(route: etree._Element, path: Path) -> tuple[tuple[float, Wea
     return tuple(out)
 
 
+def _plain(value: str, what: str, elem: etree._Element, path: Path) -> str:
+    # Route ids, towns and scenario names and types end up in clip, record and map file names.
+    try:
+        return check_safe_name(value, what)
+    except UnsafeNameError as exc:
+        raise RouteFileError(path, f"line {elem.sourceline}: {exc}") from None
+
+
 def _parse_scenario(elem: etree._Element, path: Path) -> ScenarioConfig:
     name, type_ = elem.get("name"), elem.get("type")
     if not name or not type_:
         raise RouteFileError(path, f"line {elem.sourceline}: <scenario> needs both 'name' and 'type'")
+    _plain(name, "scenario name", elem, path)
+    _plain(type_, "scenario type", elem, path)
     trigger: Transform | None = None
     params: dict[str, dict[str, str]] = {}
     for child in elem:
@@ -144,6 +155,8 @@ def _parse_route(elem: etree._Element, path: Path) -> Route:
     route_id, town = elem.get("id"), elem.get("town")
     if not route_id or not town:
         raise RouteFileError(path, f"line {elem.sourceline}: <route> needs both 'id' and 'town'")
+    _plain(route_id, "route id", elem, path)
+    _plain(town, "route town", elem, path)
     road_raw = elem.get("road_id")
     try:
         road_id = int(road_raw) if road_raw is not None else None

@@ -83,3 +83,74 @@ def test_a_crashed_jobs_record_still_counts_in_its_collection(tiny_collection, t
     assert data["expected_routes"] == 4 and data["driving_score"] == pytest.approx(60.0)
     assert data["success_rate"] == pytest.approx(50.0)
     assert "4 route(s) with a finished attempt" in printed
+
+
+def _write_planned_routes(collection: Path, n: int) -> Path:
+    """routes/Accident.xml as b2d-collect writes it: every planned attempt (ids 1..n), run or not."""
+    from b2d_data.format.transform import Location, Rotation, Transform
+    from b2d_data.scenarios.route_xml import Route, ScenarioConfig, write_routes
+
+    trigger = Transform(Location(0.0, 0.0, 0.0), Rotation())
+    routes = [
+        Route(str(i), "Town100", (Location(0.0, 0.0, 0.0),), (ScenarioConfig(f"Accident_{i}", "Accident", trigger),))
+        for i in range(1, n + 1)
+    ]
+    path = collection / "routes" / "Accident.xml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_routes(routes, path)
+    return path
+
+
+def test_the_collection_route_file_does_not_change_the_count(tiny_collection, tmp_path, capsys):
+    # --n 2 with 3 attempts per clip plans 6 routes; 3 ran (routes 1-3), one was interrupted, two never started.
+    planned = _write_planned_routes(tiny_collection, 6)
+    data, printed = _summary([str(tiny_collection / "results"), "--routes", str(planned)], tmp_path, capsys)
+    # Still DS (100 + 100 + 40) / 3 = 80 and SR 2 / 3 (the old count was the file's 6 routes: DS 40, SR 33.3).
+    assert data["expected_routes"] == 3 and data["driving_score"] == pytest.approx(80.0)
+    assert data["success_rate"] == pytest.approx(200 / 3)
+    assert data["expected_routes_reason"].endswith(
+        f"3 route(s) with a finished attempt in run_log.jsonl (not the 6 route(s) of {planned}: a collection's route "
+        "file lists every planned attempt)"
+    )
+    # The planned routes that never ran are neither missing nor crashed.
+    assert data["missing_routes"] == [] and data["abilities"]["crashed"] == []
+    assert "missing route(s) count 0" not in printed
+
+
+def test_the_abilities_hint_of_a_collection_names_its_route_file(tiny_collection, tmp_path, capsys):
+    planned = _write_planned_routes(tiny_collection, 6)
+    _, printed = _summary([str(tiny_collection / "results")], tmp_path, capsys)
+    assert (
+        f"No abilities (and no bar chart): add --routes {planned} for them (the driving score stays over the routes "
+        "the collection ran)"
+    ) in printed
+
+
+def test_the_summary_goes_beside_the_results_not_into_the_current_folder(tiny_collection, tmp_path, monkeypatch):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["summary", str(tiny_collection / "results")]) == 0
+    # OUT/results → OUT/results_summary.json (not into results/, which holds one record file per route).
+    data = json.loads((tiny_collection / "results_summary.json").read_text())
+    assert data["result_sets"][0]["driving_score"] == pytest.approx(80.0)
+    # A result file → <stem>_summary.json beside it; with routes the chart goes beside the JSON.
+    planned = _write_planned_routes(tiny_collection, 3)
+    record = tmp_path / "runs" / "eval_0.json"
+    record.parent.mkdir()
+    shutil.copy(tiny_collection / "results" / "Accident_Town100_Route1_Weather3.json", record)
+    assert main(["summary", str(record), "--routes", str(planned), "--num-routes", "1"]) == 0
+    assert sorted(p.name for p in record.parent.iterdir()) == [
+        "eval_0.json", "eval_0_summary.json", "eval_0_summary_abilities.png"]  # fmt: skip
+    assert list(elsewhere.iterdir()) == []
+
+
+def test_a_shipped_file_by_name_is_summarised_into_the_current_folder(tmp_path, monkeypatch):
+    from b2d_data import data
+
+    monkeypatch.chdir(tmp_path)
+    shipped = sorted(p.name for p in data.bench2drive_dir().iterdir())
+    assert main(["summary", "VAD_merged_results.json"]) == 0
+    # Not into the installed package's data folder, which it would be "beside".
+    assert sorted(p.name for p in data.bench2drive_dir().iterdir()) == shipped
+    assert [p.name for p in tmp_path.iterdir()] == ["VAD_merged_results_summary.json"]

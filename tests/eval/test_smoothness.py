@@ -88,3 +88,20 @@ def test_malformed_metric_file_is_named(tmp_path):
     path.write_text('{"0": {"acceleration": [0, 0, 0]}}')
     with pytest.raises(B2DFormatError, match="metric_info.json: step 0: 'angular_velocity'"):
         read_metric_info(path)
+
+
+def test_save_name_climbing_out_of_the_metric_dir_is_not_read(tmp_path):
+    from b2d_data.format.leaderboard import RouteRecord
+
+    from .conftest import write_metric_info
+
+    metric_dir = tmp_path / "metric"
+    metric_dir.mkdir()
+    # A calm run (0 m/s² and 0 °/s for 40 steps passes every comfort check → smoothness 1) placed one level above
+    # metric_dir, where save_name "../outside" points.
+    write_metric_info(tmp_path / "outside" / "metric_info.json", [(0.0, 0.0)] * 40)
+    result = driving_smoothness([RouteRecord("RouteScenario_1_rep0", save_name="../outside")], metric_dir)
+    assert result.per_route == {} and result.value is None
+    assert result.missing_files == (
+        f"{metric_dir}/'../outside' (route RouteScenario_1_rep0: save_name is not a plain name)",
+    )

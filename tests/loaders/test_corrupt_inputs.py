@@ -12,7 +12,7 @@ from torch.utils.data import DataLoader
 from b2d_data import ClipDataset
 from b2d_data.codecs import layout
 from b2d_data.format.errors import B2DFormatError
-from b2d_data.loaders import CorpusIndex, collate
+from b2d_data.loaders import BadFrame, CorpusIndex, collate
 
 from .conftest import CLIP_A
 
@@ -52,7 +52,9 @@ def test_skip_mode_reports_bad_frames(corpus_copy: Path, tmp_path: Path) -> None
     log = tmp_path / "bad.jsonl"
     ds = ClipDataset(corpus_copy, clips=[str(CLIP_A)], cameras=("front",), on_error="skip", error_log=log)
     samples = [ds[i] for i in range(len(ds))]
-    assert [i for i, s in enumerate(samples) if s is None] == sorted(expected)
+    # A skipped frame comes back as its BadFrame record (it used to be None, which torch's default collate refused).
+    assert [i for i, s in enumerate(samples) if isinstance(s, BadFrame)] == sorted(expected)
+    assert [s for s in samples if isinstance(s, BadFrame)] == ds.bad_frames
     assert {b.frame: b for b in ds.bad_frames}.keys() == expected.keys()
     assert all(expected[b.frame] in b.error for b in ds.bad_frames)
     # From DataLoader workers the report goes to the JSON-lines log; collate drops and counts the skipped frames.
@@ -61,6 +63,18 @@ def test_skip_mode_reports_bad_frames(corpus_copy: Path, tmp_path: Path) -> None
     assert sum(b["skipped"] for b in batches) == 5 and sum(b["batch_size"] for b in batches) == 7
     logged = [json.loads(line) for line in log.read_text().splitlines()]
     assert sorted(r["frame"] for r in logged) == sorted(expected)
+
+
+def test_skip_mode_with_a_plain_dataloader(corpus_copy: Path) -> None:
+    # The README's loop, DataLoader(ds, batch_size=..., num_workers=2) with torch's default collate: it raised
+    # "default_collate: batch must contain tensors, ... found <class 'NoneType'>" on the first skipped frame.
+    _corrupt(corpus_copy)  # frames 2, 3, 4, 5, 6 of the 12 are bad
+    ds = ClipDataset(corpus_copy, clips=[str(CLIP_A)], cameras=("front",), on_error="skip")
+    batches = list(DataLoader(ds, batch_size=3, num_workers=2))
+    # Batches of frames [0 1 2] [3 4 5] [6 7 8] [9 10 11]: the second is all bad, the third starts with a bad frame.
+    assert [b["batch_size"] for b in batches] == [2, 0, 2, 3] and [b["skipped"] for b in batches] == [1, 3, 1, 0]
+    assert [b["frame"].tolist() for b in batches if b["batch_size"]] == [[0, 1], [7, 8], [9, 10, 11]]
+    assert batches[0]["images"].shape == (2, 1, 36, 64, 3) and len(batches[0]["lidar"]) == 2
 
 
 def test_malformed_clip_name(corpus_copy: Path) -> None:

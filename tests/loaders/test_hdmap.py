@@ -85,3 +85,69 @@ def test_missing_map_names_the_expected_file(corpus_copy: Path) -> None:
     ds = ClipDataset(corpus_copy, clips=[str(CLIP_A)], cameras=(), lidar=False, map_radius=20.0)
     with pytest.raises(B2DFormatError, match="Town03_HD_map.npz"):
         ds[0]
+
+
+class _RunsCode:
+    """Pickles as a call of ``func(*args)``: what a malicious map would hold."""
+
+    def __init__(self, func, *args) -> None:
+        self.func, self.args = func, args
+
+    def __reduce__(self):
+        return self.func, self.args
+
+
+def _hostile_map(path: Path, payload: object) -> Path:
+    arr = np.empty((1, 2), dtype=object)
+    arr[0, 0], arr[0, 1] = 1, {-1: [payload]}
+    np.savez_compressed(path, arr=arr)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["eval", "system"])
+def test_hostile_map_is_refused_and_runs_nothing(tmp_path: Path, kind: str) -> None:
+    import builtins
+    import os
+
+    marker = tmp_path / "pwned"
+    if kind == "eval":
+        payload, refused = _RunsCode(builtins.eval, f"open({str(marker)!r}, 'w').close()"), "builtins.eval"
+    else:
+        payload, refused = _RunsCode(os.system, f"touch '{marker}'"), f"{os.system.__module__}.system"  # posix.system
+    path = _hostile_map(tmp_path / "Town03_HD_map.npz", payload)
+    with pytest.raises(B2DFormatError, match=f"Town03_HD_map.npz: refused to unpickle '{refused}'"):
+        HDMap.load(path)
+    assert not marker.exists()  # the old np.load(allow_pickle=True) created it before failing on the layout
+
+
+def test_hostile_map_through_the_dataset_runs_nothing(corpus_copy: Path) -> None:
+    import builtins
+
+    marker = corpus_copy / "pwned"
+    (corpus_copy / "maps").mkdir()
+    _hostile_map(corpus_copy / "maps" / "Town03_HD_map.npz", _RunsCode(builtins.exec, f"open({str(marker)!r}, 'w')"))
+    ds = ClipDataset(corpus_copy, clips=[str(CLIP_A)], cameras=(), lidar=False, map_radius=20.0)
+    with pytest.raises(B2DFormatError, match="refused to unpickle 'builtins.exec'"):
+        ds[0]
+    assert not marker.exists()
+
+
+def test_safe_reader_reads_what_numpy_reads(tmp_path: Path) -> None:
+    from b2d_data.codecs.object_npz import load_object_npz
+
+    path = write_town03_map(tmp_path)
+    with np.load(path, allow_pickle=True) as npz:  # our own file: the trusted reference
+        expected = npz["arr"]
+    got = load_object_npz(path, "arr")
+    assert got.dtype == object and got.shape == (2, 2)
+    # Same road ids and road dicts, element by element (the numpy float64 x values included).
+    assert got[:, 0].tolist() == [1, 2] and got.tolist() == expected.tolist()
+    assert type(got[0, 1][-1][0]["Points"][0][0][0]) is np.float64
+
+
+def test_plain_npz_array_reads_without_pickle(tmp_path: Path) -> None:
+    from b2d_data.codecs.object_npz import load_object_npz
+
+    np.savez(tmp_path / "x.npz", arr=np.arange(6, dtype=np.int16).reshape(2, 3))
+    got = load_object_npz(tmp_path / "x.npz", "arr")
+    assert got.dtype == np.int16 and got.tolist() == [[0, 1, 2], [3, 4, 5]]

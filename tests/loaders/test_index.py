@@ -101,3 +101,69 @@ def test_collection_side_folders_are_not_clips(tmp_path):
     write_synthetic_clip(tmp_path / "failed",
                          SyntheticClipSpec(ClipName.parse("Accident_Town03_Route2_Weather0"), **spec))  # fmt: skip
     assert [str(c.name) for c in discover_clips(tmp_path)] == ["Accident_Town03_Route1_Weather0"]
+
+
+def test_a_stray_file_does_not_stretch_the_clip(corpus_copy: Path, caplog: pytest.LogCaptureFixture) -> None:
+    clip = corpus_copy / str(CLIP_A)  # frames 0..11 in every modality folder
+    shutil.copy(clip / "anno" / "00011.json.gz", clip / "anno" / "99999.json.gz")
+    shutil.copy(clip / "camera" / "rgb_front" / "00003.jpg", clip / "camera" / "rgb_front" / "00500.jpg")
+    with caplog.at_level("WARNING", logger="b2d_data.loaders.clip_scan"):
+        index, report = CorpusIndex.build(corpus_copy)
+    a = _rows(index)[str(CLIP_A)]
+    # Clip A keeps its 12 frames (the old index filled 0..99999: 100 000 frames), clip B its 6.
+    assert (a["n_frames"], a["first_frame"], a["n_anno"], a["n_rgb_front"]) == (12, 0, 12, 12)
+    assert index.num_frames == 18 and not report.errors
+    assert len(ClipDataset(corpus_copy, clips=[str(CLIP_A)], cameras=())) == 12
+    stray = [r.getMessage() for r in caplog.records if "stray" in r.getMessage()]
+    assert stray == [
+        f"{clip}: 2 stray file(s) outside the frames 0..11 that most modality folders hold are ignored: "
+        "anno/99999.json.gz, camera/rgb_front/00500.jpg"
+    ]
+
+
+def test_a_stray_member_does_not_stretch_an_archived_clip(corpus_copy: Path) -> None:
+    clip = corpus_copy / str(CLIP_B)  # 6 frames
+    shutil.copy(clip / "anno" / "00005.json.gz", clip / "anno" / "99999.json.gz")
+    pack_clip(clip)
+    shutil.rmtree(clip)
+    index, _ = CorpusIndex.build(corpus_copy)
+    b = _rows(index)[str(CLIP_B)]
+    assert b["path"] == "" and (b["n_frames"], b["n_anno"]) == (6, 6)
+
+
+def test_missing_files_inside_the_clip_keep_its_length_and_are_reported(
+    corpus_copy: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    clip = corpus_copy / str(CLIP_A)
+    (clip / "lidar" / "00011.laz").unlink()  # the last frame lacks one file: it is still the clip's last frame
+    for path in (clip / "camera").glob("*/00004.*"):  # frame 4 lacks every camera file
+        path.unlink()
+    with caplog.at_level("WARNING", logger="b2d_data.loaders.clip_scan"):
+        index, _ = CorpusIndex.build(corpus_copy)
+    a = _rows(index)[str(CLIP_A)]
+    assert (a["n_frames"], a["n_lidar"], a["n_rgb_front"], a["n_anno"]) == (12, 11, 11, 12)
+    # 6 RGB (no top-down camera here) + 6 × (depth, semantic, instance) = 24 camera files of frame 4, plus the LAZ
+    # of frame 11: 25 files, the first 5 in sorted order shown.
+    (missing,) = [r.getMessage() for r in caplog.records if "missing within" in r.getMessage()]
+    assert missing.startswith(f"{clip}: 25 file(s) missing within frames 0..11: camera/depth_back/00004.png, ")
+    assert missing.endswith("(+20 more)")
+
+
+def test_archive_scan_does_not_read_an_oversized_annotation_member(
+    corpus_copy: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from b2d_data.codecs import anno_json
+
+    clip = corpus_copy / str(CLIP_B)  # 6 frames
+    assert min(p.stat().st_size for p in (clip / "anno").iterdir()) > 100
+    pack_clip(clip)
+    shutil.rmtree(clip)
+    monkeypatch.setattr(anno_json, "MAX_ANNO_BYTES", 100)  # below every annotation member's size
+    with caplog.at_level("WARNING", logger="b2d_data.loaders.clip_scan"):
+        index, _ = CorpusIndex.build(corpus_copy)
+    b = _rows(index)[str(CLIP_B)]
+    frames = index.frames.slice(b["frame_start"], b["n_frames"]).to_pydict()
+    # The members are still listed as frames, but none was read for its pose.
+    assert b["n_frames"] == 6 and all(math.isnan(x) for x in frames["ego_x"])
+    skipped = [r.getMessage() for r in caplog.records if "more than an annotation may be" in r.getMessage()]
+    assert len(skipped) == 6 and f"{CLIP_B}/anno/00000.json.gz is " in skipped[0]

@@ -7,9 +7,13 @@ import pytest
 
 
 @pytest.fixture(scope="module")
-def hdmap(tiny_map, tmp_path_factory):
-    path = tiny_map.save_hdmap(tmp_path_factory.mktemp("hd") / "Town90_HD_map.npz")
-    with np.load(path, allow_pickle=True) as npz:
+def hdmap_path(tiny_map, tmp_path_factory):
+    return tiny_map.save_hdmap(tmp_path_factory.mktemp("hd") / "Town90_HD_map.npz")
+
+
+@pytest.fixture(scope="module")
+def hdmap(hdmap_path):
+    with np.load(hdmap_path, allow_pickle=True) as npz:  # our own file, so numpy's unrestricted reader is the reference
         assert list(npz.keys()) == ["arr"]
         arr = npz["arr"]
     assert arr.dtype == object and arr.ndim == 2 and arr.shape[1] == 2
@@ -70,3 +74,14 @@ def test_trigger_volumes(hdmap):
     # Five corners of a square of half size 1.575 around the box centre (88.425, 1.75).
     assert corners.shape == (5, 3)
     np.testing.assert_allclose(corners[:, 0], 88.425 + 1.575 * np.array([-1, 1, 1, 1, -1]), atol=1e-6)
+
+
+def test_written_map_reads_with_the_restricted_unpickler(hdmap_path, hdmap):
+    from b2d_data.codecs.object_npz import load_object_npz
+    from b2d_data.loaders import HDMap
+
+    # The loaders' reader admits only numpy's array globals; the map we write must need no other.
+    assert dict(load_object_npz(hdmap_path, "arr")) == hdmap
+    # Every lane element and trigger volume becomes one polyline (each has at least the 2 points a line needs).
+    elements = sum(len(v) for road in hdmap.values() for v in road.values())
+    assert HDMap.load(hdmap_path).num_polylines == elements

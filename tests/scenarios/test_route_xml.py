@@ -125,3 +125,34 @@ def test_malformed_files_name_file_and_line(tmp_path, xml, problem):
 def test_missing_file(tmp_path):
     with pytest.raises(RouteFileError, match="route file not found"):
         read_routes(tmp_path / "none.xml")
+
+
+_ONE_ROUTE = (
+    "<routes>\n<route id='{id}' town='{town}'>\n<waypoints><position x='0' y='0' z='0'/></waypoints>\n<scenarios>\n"
+    "<scenario name='{name}' type='{type}'><trigger_point x='0' y='0' z='0' yaw='0'/></scenario>\n"
+    "</scenarios></route></routes>"
+)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "line"),
+    [("type", "../../evil", 5), ("name", "a/b", 5), ("town", "../Town200", 2), ("id", "../../x", 2),
+     ("type", ".hidden", 5)],
+)  # fmt: skip
+def test_names_that_would_become_paths_are_refused(tmp_path, field, value, line):
+    values = {"id": "1", "town": "Town01", "name": "Accident_1", "type": "Accident"} | {field: value}
+    path = tmp_path / "hostile.xml"
+    path.write_text(_ONE_ROUTE.format(**values))
+    with pytest.raises(RouteFileError) as exc:
+        read_routes(path)
+    # The file, the line of the element and the offending value are all named.
+    what = {"type": "scenario type", "name": "scenario name", "town": "route town", "id": "route id"}[field]
+    assert str(exc.value).startswith(f"{path}: line {line}: {what} {value!r} is not a plain name")
+
+
+def test_plain_names_with_dots_and_dashes_are_kept(tmp_path):
+    path = tmp_path / "ok.xml"
+    path.write_text(_ONE_ROUTE.format(id="7", town="Town10HD", name="My-Scenario.v2_1", type="My_Type"))
+    (route,) = read_routes(path)
+    assert (route.id, route.town, route.scenarios[0].name, route.scenario_type) == (
+        "7", "Town10HD", "My-Scenario.v2_1", "My_Type")  # fmt: skip

@@ -49,7 +49,8 @@ logger = logging.getLogger(__name__)
 INDEX_DIR = ".b2d_index"
 CLIPS_FILE = "clips.parquet"
 FRAMES_FILE = "frames.parquet"
-INDEX_VERSION = "1"
+#: 2: frame counts from the frames the modality folders agree on (a stray file no longer stretches a clip).
+INDEX_VERSION = "2"
 _META_BUILD = b"b2d_index_build"
 _META_VERSION = b"b2d_index_version"
 

@@ -157,6 +157,12 @@ class ExpertConfig:
     flow_follower_range: float = 40.0
     flow_follower_margin: float = 3.0
     flow_follower_time: float = 2.5
+    #: A flow car that only the long forecast finds in the ego's way and whose path joins the route (a flow the ego
+    #: turns into) holds the ego where its box would come within ``flow_hold_margin`` m of that car's path, looking
+    #: ``flow_hold_range`` m ahead, rather than where the long forecast first meets the car (expert.py, ``_hazards``;
+    #: a deviation from PDM-Lite): from 15-20 m back a 14 m/s flow 30 m apart never leaves a gap long enough.
+    flow_hold_range: float = 25.0
+    flow_hold_margin: float = 1.0
 
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this

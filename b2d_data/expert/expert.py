@@ -299,6 +299,11 @@ class Expert:
         flow_hits, drive_on = (self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed, paths)
                                if flows else (set(), set()))  # fmt: skip
         by_id.update({v.id: v for v in nearby})
+        # flow cars only the long forecast meets and whose paths join the route: wait for them just short of their
+        # paths, not where the long forecast first meets them
+        joining = ({i for i in flow_hits - set(hits) if i in paths and self._joins_route(route, paths[i])}
+                   if flows and paths else set())  # fmt: skip
+        hold = self._conflict_hold(ego, route, [paths[i] for i in joining]) if joining else None
         hits = sorted((set(hits) | flow_hits) - drive_on,
                       key=lambda i: float(np.linalg.norm(_xyz(by_id[i]) - ego_loc)))  # fmt: skip
         for actor_id in hits:
@@ -315,10 +320,14 @@ class Expert:
                 result.reduced_by = _lower(result.reduced_by, initial_speed, speed_bicycle, actor.type_id,
                                            actor.id, distance)
             else:
-                if not result.vehicle_hazard:
+                s = 0.0
+                if actor_id in joining and hold is not None:
+                    s = idm_target_speed(cfg, initial_speed, speed, 0.0, 0.0, hold, cfg.idm_red_light_s0,
+                                         cfg.idm_red_light_T)
+                if s == 0.0 and not result.vehicle_hazard:
                     result.vehicle_hazard, result.vehicle_id = True, actor.id
-                speed_vehicle = 0.0
-                result.reduced_by = _lower(result.reduced_by, initial_speed, 0.0, actor.type_id, actor.id, distance)
+                speed_vehicle = min(speed_vehicle, s)
+                result.reduced_by = _lower(result.reduced_by, initial_speed, s, actor.type_id, actor.id, distance)
 
         walker_by_id = {w.id: w for w in walkers}
         walker_target: dict[int, float] = {}
@@ -358,6 +367,33 @@ class Expert:
             result.stop_sign_hazard = True
         result.brake = target == 0.0
         return result
+
+    def _conflict_hold(self, ego: ActorState, route: DenseRoute, paths: list[np.ndarray]) -> float | None:
+        """Metres the ego's front may still drive before its box would come within ``flow_hold_margin`` m of a flow
+        car on one of ``paths`` (a car ~2 m wide on its path), looking ``flow_hold_range`` m ahead; None when the
+        route does not come near them that soon or the ego is already that close."""
+        cfg = self.config
+        index = route.index
+        ahead = route.points[index : index + cfg.points(cfg.flow_hold_range), :2]
+        if ahead.shape[0] == 0:
+            return None
+        lanes = np.concatenate([p for p in paths if p.shape[0]], axis=0)
+        near = np.min(np.hypot(ahead[:, None, 0] - lanes[None, :, 0], ahead[:, None, 1] - lanes[None, :, 1]), axis=1)
+        # the route's point where the ego's front would stand when its centre comes that close
+        clearance = ego.bounding_box.extent.y + FLOW_CAR_HALF_WIDTH + cfg.flow_hold_margin
+        inside = np.flatnonzero(near < clearance)
+        if inside.size == 0:
+            return None
+        distance = int(inside[0]) / cfg.points_per_meter - ego.bounding_box.extent.x
+        return distance if distance > 0.0 else None
+
+    def _joins_route(self, route: DenseRoute, path: np.ndarray) -> bool:
+        """Whether a flow car's hinted path runs along the route within ``flow_route_ahead`` m ahead of the ego."""
+        cfg = self.config
+        end = route.index + cfg.points(cfg.flow_route_ahead)
+        step = cfg.points_per_meter
+        return _path_joins(path, route.points[route.index : end : step, :2], route.headings[route.index : end : step],
+                           cfg)
 
     def _flow_speed_along_route(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute,
                                 paths: Mapping[int, np.ndarray] | None = None) -> float:
@@ -504,6 +540,10 @@ FLOW_TYPES = frozenset({
 
 #: ``role_name`` of the actors a scenario spawns (``scenarios.framework.SCENARIO_ROLE``; the expert is privileged).
 _SCENARIO_ROLE = "scenario"
+
+
+#: Half the width of a flow's car (m; CARLA's cars: 0.9-1.1) where only its path is known.
+FLOW_CAR_HALF_WIDTH = 1.0
 
 
 def _path_joins(path: np.ndarray, points: np.ndarray, headings: np.ndarray, cfg: ExpertConfig) -> bool:

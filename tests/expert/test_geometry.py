@@ -503,3 +503,27 @@ def test_a_flow_path_joins_the_route_where_it_runs_along_it():
     assert _path_joins(along, route, headings, CFG)  # 0.5 m off the route, same heading
     assert not _path_joins(crossing, route, headings, CFG)  # meets it at 90°
     assert not _path_joins(beside, route, headings, CFG)  # 3.5 m away: the next lane
+
+
+def test_a_flow_joining_the_route_holds_the_ego_short_of_its_path(make_route, make_vehicle):
+    from types import SimpleNamespace
+
+    from b2d_data.expert.expert import Expert
+
+    cfg = ExpertConfig()
+    route = make_route(60.0, cfg)
+    ego = make_vehicle(0, 0.0, 0.0)  # half extents 2.4 x 1.0
+    crossing = np.stack([np.full(41, 12.0), np.linspace(-20.0, 0.0, 41)], axis=1)  # reaches the route at x = 12
+    me = SimpleNamespace(config=cfg)
+    # clearance 1.0 (ego half width) + 1.0 (flow car) + 1.0 (margin) = 3.0: the first route point nearer than that
+    # to the path is x = 9.1 (10 points/m); the ego's front (2.4 m ahead of its centre) may drive 9.1 - 2.4 = 6.7 m
+    assert Expert._conflict_hold(me, ego, route, [crossing]) == pytest.approx(6.7)
+    # a path 3.5 m beside the route never comes within 3.0 m: no hold
+    beside = np.stack([np.linspace(0.0, 60.0, 61), np.full(61, -3.5)], axis=1)
+    assert Expert._conflict_hold(me, ego, route, [beside]) is None
+    # a path reaching the route 40 m on is beyond the 25 m look-ahead
+    far = crossing + np.array([28.0, 0.0])
+    assert Expert._conflict_hold(me, ego, route, [far]) is None
+    # from x = 7 the ego's front is already within reach of the car: 2.1 - 2.4 < 0, no hold (it brakes as before)
+    route.index = 70
+    assert Expert._conflict_hold(me, ego, route, [crossing]) is None

@@ -17,8 +17,14 @@ from b2d_data.format.transform import BoundingBox, Location, Transform
 from b2d_data.maps import load_opendrive
 from b2d_data.sim.api import ActorKind, ActorState
 from b2d_data.sim.builtin.furniture import furniture_from_map
-from b2d_data.sim.builtin.sensors.fixture_mesh import fixture_of_light, fixture_of_sign, fixture_static_mesh
+from b2d_data.sim.builtin.sensors.fixture_mesh import (
+    fixture_of_light,
+    fixture_of_sign,
+    fixture_static_mesh,
+    lamp_mesh,
+)
 from b2d_data.sim.builtin.sensors.raycast import RayCaster
+from b2d_data.sim.builtin.sensors.scene_mesh import merge
 from b2d_data.sim.builtin.traffic_lights import TrafficLightController, sign_info
 
 # A 100 m straight road along +x whose reference line lies 0.5 m up (elevation a = 0.5), one 3.5 m lane each way
@@ -140,13 +146,15 @@ def test_every_shipped_sign_and_light_fills_its_box(carla_maps_dir, town):
     controller = TrafficLightController([(1000 + i, spec) for i, spec in enumerate(lights)])
     infos += [(fixture_of_light(t), t.level_bbox, T.TRAFFIC_LIGHT) for t in controller.infos().values()]
     for fixture, level, tag in infos:
-        mesh = fixture_static_mesh([fixture])
+        mesh = merge([fixture_static_mesh([fixture]), lamp_mesh([fixture], {})])  # lamps: lights only
         v = mesh.vertices[mesh.tags == tag].reshape(-1, 3) - level.location.to_array()
         a = math.radians(level.rotation.yaw)
         local = np.stack([math.cos(a) * v[:, 0] + math.sin(a) * v[:, 1], -math.sin(a) * v[:, 0] + math.cos(a) * v[:, 1],
                           v[:, 2]], axis=1)  # fmt: skip
         half = level.extent.to_array()
-        # Inside the box, and spanning its full width and height (the face the cameras and the LiDAR see).
+        # Inside the box (within 0.1 mm: float32 vertices), and spanning its full width and height (the face the
+        # cameras and the LiDAR see); a light's housing and lamps span its depth too.
         assert (np.abs(local) <= half + 1e-4).all(), fixture.instance_id
-        np.testing.assert_allclose(local[:, 1:].max(axis=0), half[1:], atol=1e-4)
-        np.testing.assert_allclose(local[:, 1:].min(axis=0), -half[1:], atol=1e-4)
+        spanned = slice(0, 3) if tag == T.TRAFFIC_LIGHT else slice(1, 3)
+        np.testing.assert_allclose(local[:, spanned].max(axis=0), half[spanned], atol=1e-4)
+        np.testing.assert_allclose(local[:, spanned].min(axis=0), -half[spanned], atol=1e-4)

@@ -21,6 +21,7 @@ from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, box,
 
 _POLE = (95, 98, 100)
 _POLE_RADIUS = 0.09  # m
+_LAMP_DEPTH = 0.02  # m, the lamps' slice of a light's head box
 _HEAD = (38, 40, 36)
 _LAMP_OFF = (30, 30, 28)
 _LAMP_ON = {
@@ -159,10 +160,15 @@ def _rot_z(yaw_deg: float) -> np.ndarray:
 
 
 def _head_box(f: Fixture, color: tuple[int, int, int], tag: int, material: int = Material.MATTE) -> TriangleMesh:
+    """A light's housing: the level box less the lamps' depth on their face (the lamps fill that slice)."""
     m = np.eye(4)
     m[:3, :3] = _rot_z(f.head_yaw)
     m[:3, 3] = f.head_center
-    return box((0.0, 0.0, 0.0), f.head_half, color, tag, material).transformed(m)
+    normal_axis, sign = _lamp_layout(f)[:2]
+    centre, half = np.zeros(3), np.array(f.head_half, dtype=np.float64)
+    centre[normal_axis] = -sign * _LAMP_DEPTH / 2.0
+    half[normal_axis] -= _LAMP_DEPTH / 2.0
+    return box(centre, half, color, tag, material).transformed(m)
 
 
 def _pole_and_arm(f: Fixture, top_z: float) -> list[TriangleMesh]:
@@ -216,11 +222,12 @@ def lamp_mesh(fixtures: Iterable[Fixture], states: Mapping[int, TrafficLightStat
         to_world[:3, 3] = f.head_center
         for k, slot in enumerate(_LAMP_SLOTS):
             centre = np.zeros(3)
-            centre[normal_axis] = sign * (f.head_half[normal_axis] + 0.02)
+            # Flush with the level box's face: lamps and housing together are the box.
+            centre[normal_axis] = sign * (f.head_half[normal_axis] - _LAMP_DEPTH / 2.0)
             # Red on top of vertical heads; first along the axis of horizontal ones.
             centre[lamp_axis] = (1 - k) * spacing * (1.0 if lamp_axis == 2 else -1.0)
             half = np.full(3, radius)
-            half[normal_axis] = 0.02
+            half[normal_axis] = _LAMP_DEPTH / 2.0
             lit = state == slot
             color, material = (_LAMP_ON[slot], Material.EMISSIVE) if lit else (_LAMP_OFF, Material.MATTE)
             lamp = box(centre, half, color, tag, material)

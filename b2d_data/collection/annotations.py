@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from b2d_data.codecs.laz import stored_points
 from b2d_data.format.anno_schema import (
     DYNAMIC_VEHICLE_KEYS,
     EGO_KEYS,
@@ -63,29 +64,54 @@ def _color(actor: ActorState) -> str | None:
     return actor.attributes.get("color")
 
 
-def count_points_in_box(points_ego: np.ndarray | None, ego: ActorState, actor: ActorState) -> int:
-    """LiDAR points strictly inside the actor's box as Bench2Drive counts them (−1 without LiDAR).
+def points_in_origin_box(
+    points_ego: np.ndarray, world2ego: np.ndarray, location: Sequence[float], rel_yaw_deg: float,
+    extent: Sequence[float],
+) -> int:  # fmt: skip
+    """Bench2Drive's ``num_points`` rule: points strictly inside a box centred on the actor *origin*.
 
-    The box is centred on the actor *origin* (not its bounding-box centre) in the ego frame, turned by the
-    relative yaw, with the half extents — the released collector's rule, kept so counts are comparable.
+    ``location`` is the actor origin in the world, mapped into the ego frame by ``world2ego``; the box turns by
+    the yaw relative to the ego and has the half ``extent``. The annotation and ``b2d-verify --deep`` both count
+    with this function, from the same numbers the annotation stores, so a recount from a file is exact.
     """
-    if points_ego is None:
-        return -1
     if len(points_ego) == 0:
         return 0
-    rel = ego.transform.inverse_transform_points(actor.location.to_array()[None, :])[0]
-    yaw = math.radians(actor.transform.rotation.yaw - ego.transform.rotation.yaw)
+    m = np.asarray(world2ego, dtype=np.float64)
+    rel = m[:3, :3] @ np.asarray(location, dtype=np.float64) + m[:3, 3]
+    yaw = math.radians(rel_yaw_deg)
     c, s = math.cos(yaw), math.sin(yaw)
-    e = actor.bounding_box.extent
+    ex, ey, ez = (float(v) for v in extent)
     # Only points within the box's circumradius along ego x can be inside (the same test then runs on those):
     # one pass over the sweep per actor instead of a dozen.
-    reach = math.hypot(e.x, e.y) * (1.0 + 1e-9) + 1e-9
+    reach = math.hypot(ex, ey) * (1.0 + 1e-9) + 1e-9
     near = np.flatnonzero(np.abs(points_ego[:, 0] - rel[0]) <= reach)
     d = points_ego[near] - rel
     local_x = c * d[:, 0] + s * d[:, 1]
     local_y = -s * d[:, 0] + c * d[:, 1]
-    inside = (np.abs(local_x) < e.x) & (np.abs(local_y) < e.y) & (np.abs(d[:, 2]) < e.z)
+    inside = (np.abs(local_x) < ex) & (np.abs(local_y) < ey) & (np.abs(d[:, 2]) < ez)
     return int(np.count_nonzero(inside))
+
+
+def count_points_in_box(points_ego: np.ndarray | None, ego: ActorState, actor: ActorState) -> int:
+    """LiDAR points strictly inside the actor's box as Bench2Drive counts them (−1 without LiDAR).
+
+    The box is centred on the actor *origin* (not its bounding-box centre) in the ego frame, turned by the
+    relative yaw, with the half extents — the released collector's rule, kept so counts are comparable. Pass the
+    points as they are stored (:func:`b2d_data.codecs.laz.stored_points`), so the count is the file's.
+    """
+    if points_ego is None:
+        return -1
+    rel_yaw = float(actor.transform.rotation.yaw) - float(ego.transform.rotation.yaw)
+    return points_in_origin_box(
+        points_ego, ego.transform.inverse_matrix(), actor.location.to_list(), rel_yaw, actor.bounding_box.extent.to_list()
+    )
+
+
+def anno_points_in_box(points_ego: np.ndarray, anno: Mapping, box: Mapping) -> int:
+    """``num_points`` of an annotation box recounted from ego-frame points with the annotation's own fields."""
+    ego = anno["bounding_boxes"][0]
+    rel_yaw = float(box["rotation"][2]) - float(ego["rotation"][2])
+    return points_in_origin_box(points_ego, np.asarray(ego["world2ego"]), box["location"], rel_yaw, box["extent"])
 
 
 def _brake(actor: ActorState) -> float:
@@ -435,7 +461,8 @@ def build_annotation(
     """The complete annotation dict of one frame, keys in Bench2Drive's order."""
     control = ego.control if isinstance(ego.control, VehicleControl) else VehicleControl()
     imu = sensors.imu
-    points = sensors.lidar if config.lidar else None
+    # Counted on the sweep as the LAZ file will hold it: 1 mm steps move points lying on a box face across it.
+    points = stored_points(sensors.lidar) if config.lidar else None
     return {
         "x": float(gnss_xy[0]),
         "y": float(gnss_xy[1]),

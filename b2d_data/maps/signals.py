@@ -71,6 +71,8 @@ class Signal:
 
     ``transform`` is CARLA's landmark pose (reference line at ``s``, offset ``t``, z + zOffset, yaw
     −(heading + hOffset)); ``actor_transform`` is how CARLA spawns the sign/light actor (yaw + 90°, level).
+    ``z_offset`` is the record's zOffset: in OpenDRIVE the height of the signal's bottom above the reference line,
+    so the signal spans ``transform`` z to that plus ``height`` and the road under it is at ``transform`` z − zOffset.
     """
 
     id: str
@@ -93,6 +95,7 @@ class Signal:
     controller_ids: tuple[str, ...] = ()
     junction_id: int = -1
     from_object: bool = False
+    z_offset: float = 0.0
 
     @property
     def is_traffic_light(self) -> bool:
@@ -341,7 +344,7 @@ def _speed_object_signal(map_: Map, road: RoadRecord, obj: ObjectRecord) -> Sign
     transform = signal_transform(road, s, obj.t, obj.z_offset, obj.hdg, obj.pitch, obj.roll)
     return Signal(
         obj.id, obj.name, SPEED_LIMIT, "", float(match.group(1)), "km/h", "", road.id, obj.s, obj.t, obj.orientation,
-        False, obj.height, obj.width, transform, lanes, referenced, (), road.junction, True,
+        False, obj.height, obj.width, transform, lanes, referenced, (), road.junction, True, obj.z_offset,
     )  # fmt: skip
 
 
@@ -380,7 +383,7 @@ def build_signals(map_: Map) -> SignalIndex:
                 Signal(
                     rec.id, rec.name, rec.type, rec.subtype, rec.value, rec.unit, rec.text, road.id, rec.s, rec.t,
                     rec.orientation, rec.dynamic, rec.height, rec.width, transform, lanes, referenced, controller_ids,
-                    junction_id,
+                    junction_id, z_offset=rec.z_offset,
                 )  # fmt: skip
             )
     by_id = {sig.id: sig for sig in signals}

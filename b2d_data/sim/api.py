@@ -136,7 +136,8 @@ class TrafficLightInfo:
 
     ``stop_waypoints`` are the lane waypoints at the stop line (one per governed lane), like CARLA's
     ``TrafficLight.get_stop_waypoints``; ``affected_lane_waypoints`` like ``get_affected_lane_waypoints``.
-    ``level_bbox`` is the light's own (pole head) box in world coordinates, as ``world.get_level_bbs``.
+    ``level_bbox`` is the light's own (pole head) box in world coordinates, as ``world.get_level_bbs``;
+    ``pole_base`` where its pole meets the road (``None``: at ``transform``, which OpenDRIVE's zOffset may lift).
     """
 
     id: int
@@ -151,11 +152,15 @@ class TrafficLightInfo:
     level_bbox_transform: Transform
     elapsed_time: float = 0.0
     frozen: bool = False
+    pole_base: Location | None = None
 
 
 @dataclass(frozen=True)
 class TrafficSignInfo:
-    """A sign with a trigger volume (``traffic.stop``, ``traffic.yield``, ``traffic.speed_limit.<v>``)."""
+    """A sign with a trigger volume (``traffic.stop``, ``traffic.yield``, ``traffic.speed_limit.<v>``).
+
+    ``level_bbox`` is the plate in world coordinates; ``pole_base`` as for :class:`TrafficLightInfo`.
+    """
 
     id: int
     type_id: str
@@ -165,6 +170,7 @@ class TrafficSignInfo:
     level_bbox_transform: Transform
     opendrive_id: str = ""
     speed_limit: float | None = None  # km/h for speed-limit signs
+    pole_base: Location | None = None
 
 
 @dataclass(frozen=True)

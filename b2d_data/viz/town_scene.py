@@ -57,6 +57,7 @@ def _lights_and_signs(town, rng: np.random.Generator) -> tuple[dict[int, Traffic
     """The town's traffic lights (random red/green) and signs, as the builtin world would create them."""
     try:
         from b2d_data.sim.builtin.furniture import furniture_from_map
+        from b2d_data.sim.builtin.traffic_lights import sign_info
     except ImportError as exc:
         log.warning("no traffic furniture: %s", exc)
         return {}, {}
@@ -70,15 +71,11 @@ def _lights_and_signs(town, rng: np.random.Generator) -> tuple[dict[int, Traffic
             id=next_id, transform=spec.transform, state=state, trigger_volume=spec.trigger_volume,
             stop_waypoints=spec.stop_waypoints, affected_lane_waypoints=spec.affected_lane_waypoints,
             group_id=int(spec.group_key), opendrive_id=spec.opendrive_id, level_bbox=spec.level_bbox,
-            level_bbox_transform=spec.level_bbox_transform,
+            level_bbox_transform=spec.level_bbox_transform, pole_base=spec.pole_base,
         )  # fmt: skip
         next_id += 1
     for spec in signs_spec:
-        signs[next_id] = TrafficSignInfo(
-            id=next_id, type_id=spec.type_id, transform=spec.transform, trigger_volume=spec.trigger_volume,
-            level_bbox=spec.level_bbox, level_bbox_transform=spec.level_bbox_transform,
-            opendrive_id=spec.opendrive_id, speed_limit=spec.speed_limit,
-        )  # fmt: skip
+        signs[next_id] = sign_info(next_id, spec)
         next_id += 1
     return lights, signs
 

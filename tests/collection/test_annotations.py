@@ -116,3 +116,29 @@ def test_annotation_follows_the_schema_and_values(town01):
         "CAM_FRONT", "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT", "TOP_DOWN",
         "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT", "RADAR_BACK_RIGHT", "LIDAR_TOP",
     ]  # fmt: skip
+
+
+def test_num_points_counts_the_points_as_the_laz_file_stores_them(town01, tmp_path):
+    from b2d_data.codecs.laz import read_laz, write_laz
+
+    ego = make_actor(7, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE, Transform(), (2.451, 1.064, 0.755), (14,))
+    # A car 20 m ahead, its box 1.8503 m long (half) around its origin: its front face at ego x = 21.8503.
+    car = make_actor(8, "vehicle.audi.a2", ActorKind.VEHICLE, Transform(Location(20.0, 0.0, 0.0)), (1.8503, 0.9, 0.77),
+                     (14,))  # fmt: skip
+    snapshot = Snapshot(frame=3, timestamp=0.15, actors={7: ego, 8: car}, traffic_lights={}, traffic_signs={},
+                        collisions=(), weather=PRESETS[3])  # fmt: skip
+    # A return 0.1 mm in front of that face (outside the box) and one at the ego origin, which makes every LAZ
+    # offset 0: stored in 1 mm steps the return becomes x = round(21850.4) · 1 mm = 21.850, inside the box.
+    lidar = np.array([[0.0, 0.0, 0.0], [21.8504, 0.0, 0.3]], np.float32)
+    sensors = SensorData(
+        frame=3, cameras={}, lidar=lidar, lidar_tags=np.array([0, 14]), lidar_actor_ids=np.array([0, 8]), radar={},
+        imu=ImuReading((0.0, 0.0, 9.8), (0.0, 0.0, 0.0), 1.57), gnss=GnssReading(0.0, 0.0, 0.0), speed=0.0,
+    )  # fmt: skip
+    anno = build_annotation(town01, snapshot, ego, sensors, RigConfig(width=160, height=90),
+                            PlannerFields(1.0, 2.0, 4, 3.0, 4.0, 1, 5.0, 6.0, 3), (0.0, 0.0), False, False,
+                            np.zeros((0, 2)))  # fmt: skip
+    (box,) = [b for b in anno["bounding_boxes"] if b["id"] == "8"]
+    assert box["num_points"] == 1
+    # What a reader of the written file gets: the return at 21.850, 0.35 mm inside the face.
+    write_laz(tmp_path / "00000.laz", lidar)
+    np.testing.assert_allclose(read_laz(tmp_path / "00000.laz")[1], [21.85, 0.0, 0.3], atol=1e-9)

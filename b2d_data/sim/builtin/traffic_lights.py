@@ -8,8 +8,12 @@ Geometry follows CARLA, whose generated trigger boxes the map already computes (
   signal governs several lanes), expressed in the actor frame like ``actor.trigger_volume``;
 - ``stop_waypoints`` are the lane waypoints at the box centres (``TrafficLight.get_stop_waypoints``) and
   ``affected_lane_waypoints`` the lane waypoints at the signal references;
-- the level bounding box is the light head (sign plate) in world coordinates, :data:`LIGHT_HEAD_HEIGHT` above
-  the road at the pole, facing the approaching traffic.
+- the level bounding box is the light head (sign plate) in world coordinates, facing the approaching traffic:
+  where the map's ``<signal>`` lifts it (zOffset > 0 and a height, ``b2d_data.sim.builtin.furniture``) it spans
+  zOffset to zOffset + height above the road's reference line as OpenDRIVE defines them, else it is centred
+  :data:`LIGHT_HEAD_HEIGHT` (:data:`SIGN_PLATE_HEIGHT`) above the governed lane;
+- the pole stands on the road under the actor (``pole_base``): the actor pose itself is CARLA's landmark pose,
+  which zOffset lifts.
 
 Cycles follow CARLA's traffic-light groups: all lights governing one junction form a group whose poles (one
 OpenDRIVE controller each) take turns in controller-sequence order; the active pole shows green for ``green``
@@ -29,7 +33,7 @@ import numpy as np
 from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform, wrap_degrees
 from b2d_data.sim.api import SimulatorError, TrafficLightInfo, TrafficLightState, TrafficSignInfo
 
-#: Height (m) of a light head's / sign plate's centre above the road at the pole.
+#: Height (m) of a light head's / sign plate's centre above the governed lane where the map does not lift it.
 LIGHT_HEAD_HEIGHT = 3.0
 SIGN_PLATE_HEIGHT = 2.1
 #: Default head / plate half extents when the map gives no signal size (depth, width, height).
@@ -58,6 +62,7 @@ class FurnitureSpec:
     affected_lane_waypoints: tuple[Any, ...]
     level_bbox: BoundingBox
     level_bbox_transform: Transform
+    pole_base: Location
     group_key: int = -1  # lights: junction id (or a negative key of its own when not at a junction)
     pole_key: tuple[int, str] = (0, "")  # lights with the same key switch together; keys sort in cycle order
     speed_limit: float | None = None
@@ -92,8 +97,13 @@ def union_box(boxes: Sequence[BoundingBox]) -> BoundingBox:
 def furniture_spec(type_id: str, opendrive_id: str, actor: Transform, trigger_boxes: Sequence[BoundingBox],
                    stop_waypoints: Sequence[Any], affected: Sequence[Any], head_half: tuple[float, float, float],
                    head_height: float, group_key: int = -1, pole_key: tuple[int, str] = (0, ""),
-                   speed_limit: float | None = None) -> FurnitureSpec:
-    """Light/sign geometry from its actor pose and its governed lanes' world trigger boxes."""
+                   speed_limit: float | None = None, head_z: float | None = None,
+                   pole_z: float | None = None) -> FurnitureSpec:
+    """Light/sign geometry from its actor pose and its governed lanes' world trigger boxes.
+
+    The head (plate) is centred at world height ``head_z`` when given, else ``head_height`` above the first
+    stop waypoint; the pole stands at the actor's x, y at height ``pole_z`` (default: the actor's z).
+    """
     if not trigger_boxes or not stop_waypoints:
         raise SimulatorError(f"signal {opendrive_id}: no governed lane, cannot place its trigger volume")
     world_box = union_box(trigger_boxes)
@@ -102,8 +112,10 @@ def furniture_spec(type_id: str, opendrive_id: str, actor: Transform, trigger_bo
     trigger = BoundingBox(Location.from_array(local), world_box.extent, relative)
     lane_yaw = stop_waypoints[0].transform.rotation.yaw
     facing = Rotation(yaw=wrap_degrees(lane_yaw + 180.0))
-    ground = stop_waypoints[0].transform.location.z
-    head_centre = Location(actor.location.x, actor.location.y, ground + head_height)
+    if head_z is None:
+        head_z = stop_waypoints[0].transform.location.z + head_height
+    head_centre = Location(actor.location.x, actor.location.y, head_z)
+    pole_base = Location(actor.location.x, actor.location.y, actor.location.z if pole_z is None else pole_z)
     level = BoundingBox(head_centre, Location(*head_half), facing)
     return FurnitureSpec(
         type_id=type_id,
@@ -114,6 +126,7 @@ def furniture_spec(type_id: str, opendrive_id: str, actor: Transform, trigger_bo
         affected_lane_waypoints=tuple(affected),
         level_bbox=level,
         level_bbox_transform=Transform(head_centre, facing),
+        pole_base=pole_base,
         group_key=group_key,
         pole_key=pole_key if pole_key[1] else (0, str(opendrive_id)),
         speed_limit=speed_limit,
@@ -189,7 +202,7 @@ class TrafficLightController:
                     trigger_volume=spec.trigger_volume, stop_waypoints=spec.stop_waypoints,
                     affected_lane_waypoints=spec.affected_lane_waypoints, group_id=gid,
                     opendrive_id=spec.opendrive_id, level_bbox=spec.level_bbox,
-                    level_bbox_transform=spec.level_bbox_transform,
+                    level_bbox_transform=spec.level_bbox_transform, pole_base=spec.pole_base,
                 )  # fmt: skip
                 self._lights[actor_id] = _Light(info=info, state=TrafficLightState.RED)
             self._apply_group(group, initial=True)
@@ -294,5 +307,5 @@ def sign_info(actor_id: int, spec: FurnitureSpec) -> TrafficSignInfo:
     return TrafficSignInfo(
         id=actor_id, type_id=spec.type_id, transform=spec.transform, trigger_volume=spec.trigger_volume,
         level_bbox=spec.level_bbox, level_bbox_transform=spec.level_bbox_transform,
-        opendrive_id=spec.opendrive_id, speed_limit=spec.speed_limit,
+        opendrive_id=spec.opendrive_id, speed_limit=spec.speed_limit, pole_base=spec.pole_base,
     )  # fmt: skip

@@ -1,8 +1,8 @@
 """Traffic lights and signs: poles, heads and plates (static) and the lit lamps of each light (per tick).
 
-A :class:`Fixture` is built from the snapshot's :class:`TrafficLightInfo` / :class:`TrafficSignInfo` (the head or
-plate fills the level bounding box the annotations report, so boxes and rendered pixels agree) or, for a map
-without a running simulator, from the map's OpenDRIVE signals. Heads carry the traffic-light tag (7), plates the
+A :class:`Fixture` is built from the snapshot's :class:`TrafficLightInfo` / :class:`TrafficSignInfo`: the head or
+plate fills the level bounding box the annotations report (so boxes, rendered pixels, depth and LiDAR agree) and
+the pole stands on the road at ``pole_base``. Heads carry the traffic-light tag (7), plates the
 traffic-sign tag (8), poles the pole tag (6); all carry the light/sign id as instance id.
 """
 
@@ -20,6 +20,8 @@ from b2d_data.sim.api import Snapshot, TrafficLightInfo, TrafficLightState, Traf
 from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, box, cylinder, merge, prism
 
 _POLE = (95, 98, 100)
+_POLE_RADIUS = 0.09  # m
+_LAMP_DEPTH = 0.02  # m, the lamps' slice of a light's head box
 _HEAD = (38, 40, 36)
 _LAMP_OFF = (30, 30, 28)
 _LAMP_ON = {
@@ -64,35 +66,38 @@ def _box_world(box_: BoundingBox, frame: Transform, near: Location) -> tuple[np.
 def _facing_of(info: TrafficLightInfo | TrafficSignInfo, centre: np.ndarray, yaw_deg: float) -> np.ndarray:
     """Horizontal unit vector the lamps / plate face.
 
-    The builtin world turns a level box's +x axis towards the approaching traffic; a box without rotation falls
-    back to the direction from the head to the stop line (or trigger volume) it governs.
+    The builtin world turns a level box's +x axis towards the approaching traffic. A box without rotation (also
+    one facing yaw 0 exactly) faces along its thinner horizontal axis, on the side of the stop line (or trigger
+    volume) it governs: the direction to that line itself is mostly across the road, not along the plate's normal.
     """
+    a = math.radians(yaw_deg)
+    x_axis = np.array([math.cos(a), math.sin(a)])
     if info.level_bbox.rotation != Rotation():
-        a = math.radians(yaw_deg)
-        return np.array([math.cos(a), math.sin(a)])
+        return x_axis
+    ext = info.level_bbox.extent
+    normal = x_axis if ext.x <= ext.y else np.array([-x_axis[1], x_axis[0]])
     stops = getattr(info, "stop_waypoints", ())
     if stops:
         target = np.mean([w.transform.location.to_array() for w in stops], axis=0)
     else:
         target = info.transform.transform_point(info.trigger_volume.location).to_array()
-    d = target[:2] - centre[:2]
-    n = float(np.linalg.norm(d))
-    if n > 0.5:
-        return d / n
-    a = math.radians(yaw_deg)
-    return np.array([math.cos(a), math.sin(a)])
+    return -normal if float((target[:2] - centre[:2]) @ normal) < 0.0 else normal
 
 
 def _sane(half: np.ndarray) -> bool:
     return bool(np.all(half > 0.02) and np.all(half < 3.0))
 
 
+def _pole_base(info: TrafficLightInfo | TrafficSignInfo) -> np.ndarray:
+    return (info.pole_base if info.pole_base is not None else info.transform.location).to_array()
+
+
 def fixture_of_light(info: TrafficLightInfo) -> Fixture:
-    """A traffic light's fixture; the head fills ``level_bbox`` when it is a plausible head box."""
-    base = info.transform.location.to_array()
+    """A traffic light's fixture; the head fills ``level_bbox`` whenever its extents are plausible."""
+    base = _pole_base(info)
     centre, yaw = _box_world(info.level_bbox, info.level_bbox_transform, info.transform.location)
     half = info.level_bbox.extent.to_array()
-    if not _sane(half) or centre[2] - base[2] < 1.5:
+    if not _sane(half):
         # No usable level box: a standard three-lamp head on top of a 4 m pole.
         half = np.array([0.18, 0.18, 0.5])
         centre = base + np.array([0.0, 0.0, 4.0 + half[2]])
@@ -112,15 +117,26 @@ def _sign_kind(type_id: str) -> str:
 
 
 def fixture_of_sign(info: TrafficSignInfo) -> Fixture:
-    """A sign's fixture; the plate fills ``level_bbox`` when it is a plausible plate."""
-    base = info.transform.location.to_array()
+    """A sign's fixture; the plate fills ``level_bbox`` whenever its extents are plausible, its pole behind it."""
+    base = _pole_base(info)
     centre, yaw = _box_world(info.level_bbox, info.level_bbox_transform, info.transform.location)
     half = info.level_bbox.extent.to_array()
-    if not _sane(half) or centre[2] - base[2] < 0.8:
+    if not _sane(half):
         half = np.array([0.03, 0.4, 0.4])
         centre = base + np.array([0.0, 0.0, 2.2])
         yaw = info.transform.rotation.yaw
-    return Fixture(_sign_kind(info.type_id), info.id, base, centre, half, yaw, _facing_of(info, centre, yaw))
+    facing = _facing_of(info, centre, yaw)
+    # The pole stands just behind the plate, so that the plate's face shows whole (traffic-sign pixels and LiDAR
+    # returns over the whole box) instead of a pole across its lower half.
+    behind = centre[:2] - facing * (_extent_along(half, yaw, facing) + _POLE_RADIUS)
+    base = np.array([behind[0], behind[1], base[2]])
+    return Fixture(_sign_kind(info.type_id), info.id, base, centre, half, yaw, facing)
+
+
+def _extent_along(half: np.ndarray, yaw_deg: float, direction: np.ndarray) -> float:
+    """Half length of a level box (half extents, yaw) along a horizontal unit vector."""
+    r = _rot_z(yaw_deg)
+    return float(abs(r[:2, 0] @ direction) * half[0] + abs(r[:2, 1] @ direction) * half[1])
 
 
 def fixtures_of_snapshot(snapshot: Snapshot) -> list[Fixture]:
@@ -144,10 +160,15 @@ def _rot_z(yaw_deg: float) -> np.ndarray:
 
 
 def _head_box(f: Fixture, color: tuple[int, int, int], tag: int, material: int = Material.MATTE) -> TriangleMesh:
+    """A light's housing: the level box less the lamps' depth on their face (the lamps fill that slice)."""
     m = np.eye(4)
     m[:3, :3] = _rot_z(f.head_yaw)
     m[:3, 3] = f.head_center
-    return box((0.0, 0.0, 0.0), f.head_half, color, tag, material).transformed(m)
+    normal_axis, sign = _lamp_layout(f)[:2]
+    centre, half = np.zeros(3), np.array(f.head_half, dtype=np.float64)
+    centre[normal_axis] = -sign * _LAMP_DEPTH / 2.0
+    half[normal_axis] -= _LAMP_DEPTH / 2.0
+    return box(centre, half, color, tag, material).transformed(m)
 
 
 def _pole_and_arm(f: Fixture, top_z: float) -> list[TriangleMesh]:
@@ -155,7 +176,7 @@ def _pole_and_arm(f: Fixture, top_z: float) -> list[TriangleMesh]:
     tag = int(SemanticTag.POLE)
     base = f.base.copy()
     height = max(0.5, top_z - base[2])
-    parts = [cylinder(base, 0.09, height, _POLE, tag, sides=6)]
+    parts = [cylinder(base, _POLE_RADIUS, height, _POLE, tag, sides=6)]
     reach = f.head_center[:2] - base[:2]
     dist = float(np.linalg.norm(reach))
     if dist > 0.4:
@@ -201,11 +222,12 @@ def lamp_mesh(fixtures: Iterable[Fixture], states: Mapping[int, TrafficLightStat
         to_world[:3, 3] = f.head_center
         for k, slot in enumerate(_LAMP_SLOTS):
             centre = np.zeros(3)
-            centre[normal_axis] = sign * (f.head_half[normal_axis] + 0.02)
+            # Flush with the level box's face: lamps and housing together are the box.
+            centre[normal_axis] = sign * (f.head_half[normal_axis] - _LAMP_DEPTH / 2.0)
             # Red on top of vertical heads; first along the axis of horizontal ones.
             centre[lamp_axis] = (1 - k) * spacing * (1.0 if lamp_axis == 2 else -1.0)
             half = np.full(3, radius)
-            half[normal_axis] = 0.02
+            half[normal_axis] = _LAMP_DEPTH / 2.0
             lit = state == slot
             color, material = (_LAMP_ON[slot], Material.EMISSIVE) if lit else (_LAMP_OFF, Material.MATTE)
             lamp = box(centre, half, color, tag, material)
@@ -214,12 +236,16 @@ def lamp_mesh(fixtures: Iterable[Fixture], states: Mapping[int, TrafficLightStat
 
 
 def _plate(f: Fixture) -> TriangleMesh:
-    """A sign plate: octagon (stop), triangle (yield), disc (speed limit) or rectangle, facing ``facing``."""
+    """A sign plate: octagon (stop), triangle (yield), disc (speed limit) or rectangle, facing ``facing``.
+
+    The outline spans the level box's face exactly (its width across ``facing`` and its height), so the box the
+    annotation reports is the plate's bounding box.
+    """
     tag = int(SemanticTag.TRAFFIC_SIGN)
     n = np.array([f.facing[0], f.facing[1], 0.0])
     u = np.array([-n[1], n[0], 0.0])
-    half = float(min(f.head_half.max(), 1.2))
-    r = max(0.2, min(half, f.head_half[2] if f.head_half[2] > 0.1 else half))
+    half_u = _extent_along(f.head_half, f.head_yaw, u[:2])
+    half_z = float(f.head_half[2])
     if f.kind == "stop":
         sides, color, start = 8, (200, 20, 25), math.pi / 8
     elif f.kind == "yield":
@@ -229,16 +255,23 @@ def _plate(f: Fixture) -> TriangleMesh:
     else:
         sides, color, start = 4, (30, 80, 170), math.pi / 4
     a = start + np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
-    ring = f.head_center + np.outer(np.cos(a) * r, u) + np.outer(np.sin(a) * r, [0.0, 0.0, 1.0])
+    across, up = _unit_span(np.cos(a)), _unit_span(np.sin(a))
+    ring = f.head_center + np.outer(across * half_u, u) + np.outer(up * half_z, [0.0, 0.0, 1.0])
     front = ring + n * 0.02
     back = ring - n * 0.02
     plate = prism(back, front, color, tag, Material.PAINT, cap_top=True, cap_bottom=True)
     parts = [plate]
     if f.kind == "speed_limit":
-        ring_in = f.head_center + np.outer(np.cos(a) * r * 0.82, u) + np.outer(np.sin(a) * r * 0.82, [0.0, 0.0, 1.0])
+        ring_in = f.head_center + 0.82 * (ring - f.head_center)
         parts.append(prism(ring + n * 0.021, ring + n * 0.022, (200, 20, 25), tag, cap_top=False))
         parts.append(prism(ring_in + n * 0.022, ring_in + n * 0.023, (240, 240, 240), tag, cap_top=True))
     return merge(parts)
+
+
+def _unit_span(values: np.ndarray) -> np.ndarray:
+    """Polygon coordinates moved and scaled to span exactly [−1, 1] (the outline's bounding box is the box face)."""
+    lo, hi = float(values.min()), float(values.max())
+    return (2.0 * values - (lo + hi)) / (hi - lo)
 
 
 def fixture_static_mesh(fixtures: Iterable[Fixture]) -> TriangleMesh:

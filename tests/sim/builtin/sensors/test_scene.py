@@ -104,15 +104,18 @@ def test_traffic_light_head_fills_its_level_box():
     fixture = fixture_of_light(info)
     static = fixture_static_mesh([fixture])
     heads = static.vertices[static.tags == T.TRAFFIC_LIGHT].reshape(-1, 3)
-    # The head is the level box: yaw 90° swaps its x/y extents in the world.
+    # The housing is the level box (yaw 90° swaps its x/y extents in the world) less the lamps' 2 cm slice on the
+    # face the level box's +x axis points to (yaw 90°: +y, towards the traffic).
     np.testing.assert_allclose(heads.min(axis=0), [10.0 - 0.3, 5.0 - 0.25, 2.4], atol=1e-6)
-    np.testing.assert_allclose(heads.max(axis=0), [10.0 + 0.3, 5.0 + 0.25, 3.6], atol=1e-6)
+    np.testing.assert_allclose(heads.max(axis=0), [10.0 + 0.3, 5.0 + 0.25 - 0.02, 3.6], atol=1e-6)
     assert int(T.POLE) in static.tags and (static.instance_ids == 900).all()
     lamps = lamp_mesh([fixture], {900: TrafficLightState.GREEN})
     lit = lamps.materials == Material.EMISSIVE
     assert lit.sum() == 12  # one box of three glows
-    # Green is the lowest lamp, on the face the level box's +x axis points to (yaw 90°: +y, towards the traffic).
-    assert lamps.vertices[lit][..., 2].max() < 3.0 and lamps.vertices[lit][..., 1].min() >= 5.25 - 1e-6
+    # Green is the lowest lamp, in that slice: flush with the box's face, so lamps and housing are exactly the box.
+    assert lamps.vertices[lit][..., 2].max() < 3.0
+    np.testing.assert_allclose(lamps.vertices[..., 1].min(), 5.25 - 0.02, atol=1e-6)
+    np.testing.assert_allclose(lamps.vertices[..., 1].max(), 5.25, atol=1e-6)
 
 
 def test_town_scene_is_built_once_per_layout_whatever_the_route_seed():

@@ -1,0 +1,128 @@
+"""``b2d-collect`` under faults (issue 25): a worker lost after renaming its clip, a killed idle worker, lost
+attempts in the summary, a full disk, multiprocessing's temporary folders of killed drivers.
+
+Routes are the short Accident routes of ``test_collect.py`` at a tiny resolution; the worker-death cases that need an
+exact moment (1 ms after a rename) are staged: the route really runs, then the driver is told its worker died.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from b2d_data.cli.collect import main
+from b2d_data.collection import run_log as rl
+from b2d_data.collection.backends import WORKER_LOST, InlineBackend, error_result
+from b2d_data.collection.job import ADOPTED, CollectConfig, write_route_results
+from b2d_data.format import leaderboard as lb
+
+from .test_collect import _args, _clips, short_routes  # noqa: F401 - fixture
+
+
+class _LostAfterRename:
+    """Runs routes in this process, but the first attempt's worker "dies" right after renaming its clip: the clip
+    and its success record are on disk, and the driver hears only that the worker was lost."""
+
+    capacity = 1
+
+    def __init__(self, out: Path, config: CollectConfig, on_frames=None) -> None:
+        self.inner = InlineBackend(out, config, on_frames)
+        self.lost = False
+
+    def submit(self, task) -> None:
+        self.inner.submit(task)
+
+    def running(self) -> int:
+        return self.inner.running()
+
+    def wait(self, timeout=None):
+        done = self.inner.wait(timeout)
+        if not self.lost:
+            self.lost = True
+            assert [r.status for _, r in done] == ["clip"], "the staged route must succeed"
+            return [(task, error_result(task, "worker process died (killed or crashed)")) for task, _ in done]
+        return done
+
+    def close(self, abandon: bool = False) -> None:
+        self.inner.close(abandon)
+
+
+def test_the_retry_of_a_route_whose_lost_worker_renamed_its_clip_adopts_it(short_routes, tmp_path, monkeypatch):  # noqa: F811
+    """Audit case 1g: before the fix the retry failed on the existing folder, wrote 'Simulation crashed' over the
+    clip's record and a second route was collected: two clips for ``--n 1``."""
+    import b2d_data.collection.runner as runner
+
+    monkeypatch.setattr(runner, "make_backend", _LostAfterRename)
+    out = tmp_path / "data"
+    args = _args(short_routes, out)
+    args[args.index("--n") + 1] = "1"
+    assert main(args) == 0
+
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    finals = rl.final_records(records)
+    first = finals[0]["route_id"]
+    # One route, run twice (the lost attempt and its retry); the third route of the file is never started.
+    assert [r["route_id"] for r in records if r["event"] == rl.EVENT_START] == [first, first]
+    assert [(r["route_id"], r["status"], r["note"]) for r in finals] == [
+        (first, "error", WORKER_LOST),
+        (first, "clip", ADOPTED),
+    ]
+    clip = finals[1]["clip"]
+    assert [p.name for p in _clips(out)] == [clip]  # n = 1: exactly one clip folder
+    assert finals[1]["clip_path"] == clip and finals[1]["frames"] == len(list((out / clip / "anno").iterdir()))
+    record = lb.read_results(out / "results" / f"{clip}.json").records[0]
+    assert record.status == "Completed" and record.extra["b2d_collect"]["success"] is True
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scenarios"][0]["clips"] == 1 and summary["complete"] is True
+
+
+def _finished(out: Path, route_id: int, success: bool | None, clip_on_disk: bool) -> str:
+    """A route's record (``success`` None: the crash record of a failed job) and optionally its complete clip."""
+    name = f"Accident_Town100_Route{route_id}_Weather3"
+    status = "Failed - Simulation crashed" if success is None else "Completed" if success else "Failed"
+    record = lb.RouteRecord(route_id=lb.record_route_id(route_id), status=status, town_name="Town100", index=0)
+    if success is not None:
+        record.extra["b2d_collect"] = {"seed": 11, "clip": name, "success": success}
+    write_route_results(out, name, record)
+    if clip_on_disk:
+        (out / name / "anno").mkdir(parents=True)
+        (out / name / "b2d_format.json").write_text("{}")
+    return name
+
+
+def _attempt(route_id: int, status: str, note: str = "") -> dict:
+    return {"event": "attempt", "route_id": str(route_id), "status": status, "note": note,
+            "clip": f"Accident_Town100_Route{route_id}_Weather3"}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", ["older version's duplicate", "driver killed before the retry"])
+def test_resume_counts_every_clip_it_keeps(tmp_path, case):
+    """A clip that only error attempts speak of is adopted when its success record is there, else set aside."""
+    from b2d_data.collection.corpus import reconcile
+
+    out = tmp_path / "data"
+    log = rl.RunLog(out / rl.LOG_FILE)
+    if case == "older version's duplicate":
+        # What 1g left: route 1's clip under a crash record, logged as two errors; route 2 collected instead.
+        lost = _finished(out, 1, None, clip_on_disk=True)
+        kept = _finished(out, 2, True, clip_on_disk=True)
+        records = [_attempt(1, "error", WORKER_LOST), _attempt(1, "error"), _attempt(2, "clip")]
+    else:
+        # The worker died after its rename and the driver was killed before the retry finished.
+        kept = _finished(out, 1, True, clip_on_disk=True)
+        records = [_attempt(1, "error", WORKER_LOST), {"event": "start", "route_id": "1"}]
+    for r in records:
+        log.append(r)
+    report = reconcile(out, records, CollectConfig(out=out), log)
+
+    finals = rl.final_records(rl.read_run_log(log.path))
+    clip_routes = [r["route_id"] for r in finals if r["status"] == "clip"]
+    if case == "older version's duplicate":
+        assert report.set_aside == [f"failed/{lost}"] and not (out / lost).exists()
+        assert clip_routes == ["2"] and report.adopted == []
+    else:
+        assert report.set_aside == [] and report.adopted == ["1"]
+        assert clip_routes == ["1"]
+    assert [p.name for p in _clips(out)] == [kept]  # every clip left in place is counted once

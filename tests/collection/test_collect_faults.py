@@ -126,3 +126,85 @@ def test_resume_counts_every_clip_it_keeps(tmp_path, case):
         assert report.set_aside == [] and report.adopted == ["1"]
         assert clip_routes == ["1"]
     assert [p.name for p in _clips(out)] == [kept]  # every clip left in place is counted once
+
+
+_NAPS = '''
+import os, time
+from pathlib import Path
+from b2d_data.collection.job import JobResult
+
+
+def nap(route, town, out, config, seed):
+    """Stand-in route job: route 1 returns once route 2 runs (so two workers hold one task each), route 2 sleeps."""
+    (Path(out) / f"started-{route.id}").write_text(str(os.getpid()))
+    deadline = time.monotonic() + 30
+    while route.id == "1" and not (Path(out) / "started-2").exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(route.seconds)
+    return JobResult(str(route.id), "Accident", town.name, 1, seed, "failed", pid=os.getpid())
+'''
+
+_KILL_IDLE_WORKER = '''
+import os, signal, sys, time
+from pathlib import Path
+from types import SimpleNamespace
+
+from b2d_data.collection.backends import ProcessPoolBackend
+from b2d_data.collection.job import CollectConfig
+from b2d_data.collection.plan import RouteTask
+import naps
+
+
+def main():
+    out = Path(sys.argv[1])
+    backend = ProcessPoolBackend(out, CollectConfig(out=out, workers=2, sensors=False), 2, job=naps.nap)
+    for i, seconds in ((1, 0.0), (2, 6.0)):
+        backend.submit(RouteTask(SimpleNamespace(id=str(i), seconds=seconds), SimpleNamespace(name="Town100"),
+                                 "Accident", i))
+    first = []
+    while not first:
+        first = backend.wait(timeout=1.0)
+    time.sleep(0.3)  # the idle worker is back in the pool's queue, holding its read lock
+    os.kill(first[0][1].pid, signal.SIGKILL)
+    lost = []
+    while backend.running():
+        lost += [(task.route.id, result.note) for task, result in backend.wait(timeout=1.0)]
+    backend.close()
+    print("lost", lost, flush=True)
+
+
+if __name__ == "__main__":
+    main()
+'''
+
+
+def test_killing_an_idle_worker_does_not_hang_the_driver(tmp_path):
+    """Audit case 1h: a real pool of 2 workers; worker A (idle, inside the pool's queue lock) is killed while B
+    runs a 6 s task. The pool stops B with SIGTERM; before the fix B took the SystemExit for its task's error,
+    went back to the queue, waited for ever on the lock A held, and the driver's exit waited for B."""
+    import os
+    import subprocess
+    import sys
+
+    import b2d_data
+
+    (tmp_path / "naps.py").write_text(_NAPS)
+    (tmp_path / "scenario.py").write_text(_KILL_IDLE_WORKER)
+    out = tmp_path / "out"
+    out.mkdir()
+    repo = Path(b2d_data.__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(repo)]))
+    try:
+        # ~1.5 s of start-up + 0.3 s; B stops on its SIGTERM. The close() safety net (kill after 15 s) and the
+        # hang both exceed 12 s.
+        done = subprocess.run([sys.executable, str(tmp_path / "scenario.py"), str(out)], env=env,
+                              capture_output=True, text=True, timeout=12)  # fmt: skip
+    except subprocess.TimeoutExpired as exc:
+        pytest.fail(f"the driver did not finish within 12 s: {exc.stdout!r} {exc.stderr!r}")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"lost [('2', '{WORKER_LOST}')]", done.stdout  # B's task came back as lost
+    assert "did not stop" not in done.stderr and "leaked" not in done.stderr, done.stderr
+    from ..conftest import alive
+
+    busy = int((out / "started-2").read_text())
+    assert not alive(busy)

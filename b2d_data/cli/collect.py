@@ -287,8 +287,9 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     per_clip = summary.seconds_per_clip
     timing = f", {per_clip:.1f} s per clip" if per_clip is not None else ""
     kind = "records" if not summary.sensors else "clips"
+    lost = f" (+{summary.lost_this_run} lost with their worker)" if summary.lost_this_run else ""
     print(
-        f"{summary.clips_this_run} {kind} from {summary.attempts_this_run} attempts in "
+        f"{summary.clips_this_run} {kind} from {summary.attempts_this_run} attempts{lost} in "
         f"{summary.wall_seconds:.1f} s{timing}; summary in {Path(summary.out) / 'summary.json'}"
     )
     if summary.skipped_routes:

@@ -49,7 +49,7 @@ class _LostAfterRename:
         self.inner.close(abandon)
 
 
-def test_the_retry_of_a_route_whose_lost_worker_renamed_its_clip_adopts_it(short_routes, tmp_path, monkeypatch):  # noqa: F811
+def test_the_retry_of_a_route_whose_lost_worker_renamed_its_clip_adopts_it(short_routes, tmp_path, monkeypatch, capsys):  # noqa: F811, E501
     """Audit case 1g: before the fix the retry failed on the existing folder, wrote 'Simulation crashed' over the
     clip's record and a second route was collected: two clips for ``--n 1``."""
     import b2d_data.collection.runner as runner
@@ -76,6 +76,10 @@ def test_the_retry_of_a_route_whose_lost_worker_renamed_its_clip_adopts_it(short
     assert record.status == "Completed" and record.extra["b2d_collect"]["success"] is True
     summary = json.loads((out / "summary.json").read_text())
     assert summary["scenarios"][0]["clips"] == 1 and summary["complete"] is True
+    # The lost attempt is no verdict on the route: 1 attempt (the adopted clip), 1 lost, 100 %.
+    assert [summary["scenarios"][0][k] for k in ("attempts", "lost", "success_rate")] == [1, 1, 1.0]
+    assert (summary["attempts_this_run"], summary["lost_this_run"]) == (1, 1)
+    assert "1 clips from 1 attempts (+1 lost with their worker)" in capsys.readouterr().out
 
 
 def _finished(out: Path, route_id: int, success: bool | None, clip_on_disk: bool) -> str:
@@ -208,3 +212,30 @@ def test_killing_an_idle_worker_does_not_hang_the_driver(tmp_path):
 
     busy = int((out / "started-2").read_text())
     assert not alive(busy)
+
+
+def test_attempts_lost_with_their_worker_are_not_route_failures(tmp_path):
+    """Audit case 1d: one worker killed broke the pool; both in-flight routes were reported as errors and run
+    again, and the table said 'success 50%' with 'error: worker process died' although every route succeeded."""
+    from types import SimpleNamespace
+
+    from b2d_data.collection.plan import CollectionPlan, RouteTask, ScenarioPlan
+    from b2d_data.collection.runner import CollectSummary, summarise, summary_table
+
+    tasks = [RouteTask(SimpleNamespace(id=str(i)), SimpleNamespace(name="Town100"), "Accident", i) for i in (1, 2)]
+    plan = CollectionPlan([ScenarioPlan("Accident", 2, tasks)], towns=[], settings={})
+    records = [
+        {**_attempt(1, "error", WORKER_LOST), "reason": "worker process died (killed or crashed)"},
+        {**_attempt(2, "error", WORKER_LOST), "reason": "worker pool broke while the route was queued or running"},
+        _attempt(1, "clip"),
+        _attempt(2, "clip"),
+        {**_attempt(3, "error"), "route_id": "9"},  # another scenario's route: not counted here
+    ]
+    (s,) = summarise(plan, records, tmp_path, sensors=False)
+    # 2 routes, each lost once then a clip: 2 attempts, 2 clips, 2 lost, no error, 100 %.
+    assert (s.attempts, s.clips, s.lost, s.errors, s.failed, s.reasons) == (2, 2, 2, 0, 0, {})
+    assert s.success_rate == 1.0 and s.to_dict()["lost"] == 2
+    table = summary_table(CollectSummary(str(tmp_path), [s])).splitlines()
+    assert table[0].split() == ["scenario", "clips", "attempts", "lost", "success", "main", "failure", "reasons"]
+    assert table[2].split() == ["Accident", "2/2", "2", "2", "100%", "—"]
+    assert table[3].startswith("lost: attempts whose worker process died")

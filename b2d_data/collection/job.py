@@ -34,6 +34,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from b2d_data.collection.disk_space import DISK_FULL, is_disk_full
 from b2d_data.collection.progress import FrameReporter
 from b2d_data.collection.towns import TownSource, ensure_hdmap, load_map
 from b2d_data.codecs.format_info import read_format_info
@@ -126,6 +127,8 @@ class JobResult:
     score_composed: float = 0.0
     score_route: float = 0.0
     frames: int = 0
+    #: Bytes the attempt's clip writer wrote (the clip's size when kept; up to the error otherwise).
+    bytes_written: int = 0
     ticks: int = 0
     duration_game: float = 0.0
     duration: float = 0.0
@@ -483,6 +486,8 @@ def _record_crash(route: Route, town: TownSource, out: Path, result: JobResult, 
     result.status = STATUS_ERROR
     result.success = False
     result.reason = f"{type(exc).__name__}: {exc}"
+    if is_disk_full(exc):
+        result.note = DISK_FULL  # the driver starts no new route
     result.error = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-12:])
     log.warning("route %s: job failed: %s", route.id, result.reason)
     log.debug("route %s traceback:\n%s", route.id, result.error)
@@ -593,10 +598,13 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
                 result.clip_path = move_to_failed(out, str(name))
             else:
                 writer.abort()  # a no-op when the clip was already dropped
+            result.bytes_written = writer.bytes_written
             result.timings["close"] = round(time.perf_counter() - t, 3)
             writer = None
     finally:
         if writer is not None:
+            # What the attempt wrote before its error (a full disk's estimate of the space needed uses it).
+            result.frames, result.bytes_written = writer.frames_written, writer.bytes_written
             writer.abort()
         sim.close()
 

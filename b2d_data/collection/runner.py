@@ -21,6 +21,7 @@ from typing import Any
 
 from b2d_data.collection import run_log as rl
 from b2d_data.collection.backends import WORKER_LOST, Backend, make_backend
+from b2d_data.collection.disk_space import DISK_FULL, SpaceNeeded, space_needed
 from b2d_data.collection.corpus import (
     ResumeReport,
     check_settings,
@@ -111,6 +112,8 @@ class CollectSummary:
     skipped_routes: list[str] = field(default_factory=list)
     sensors: bool = True
     lost_this_run: int = 0
+    #: Set when a full disk stopped the run: the space the missing clips need.
+    disk_full: SpaceNeeded | None = None
 
     @property
     def complete(self) -> bool:
@@ -128,6 +131,7 @@ class CollectSummary:
             "out": self.out, "complete": self.complete, "sensors": self.sensors,
             "attempts_this_run": self.attempts_this_run, "clips_this_run": self.clips_this_run,
             "lost_this_run": self.lost_this_run,
+            "disk_full": None if self.disk_full is None else self.disk_full.to_dict(),
             "wall_seconds": round(self.wall_seconds, 3),
             "seconds_per_clip": None if self.seconds_per_clip is None else round(self.seconds_per_clip, 3),
             "skipped_routes": self.skipped_routes,
@@ -162,9 +166,14 @@ class Progress:
         return f"{routes + ' | ' if routes else ''}ETA {format_seconds(self.eta)}"
 
 
+#: ``JobResult.note`` of attempts lost to the infrastructure (a dead worker, a full disk), not run to a verdict.
+LOST_NOTES = frozenset({WORKER_LOST, DISK_FULL})
+
+
 def is_lost(record: dict[str, Any]) -> bool:
-    """Whether a run-log attempt was lost to the infrastructure (its worker died) rather than run to its end."""
-    return record.get("note") == WORKER_LOST
+    """Whether a run-log attempt was lost to the infrastructure (its worker died, its disk was full) rather than
+    run to its end."""
+    return record.get("note") in LOST_NOTES
 
 
 def _is_clip(record: dict[str, Any], out: Path, sensors: bool) -> bool:
@@ -236,18 +245,31 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
         attempts, clips = session.run()
         if session.retries:  # what the lost workers were writing
             remove_temporaries(out)
+        scenarios = summarise(plan, records, out, config.sensors)
         summary = CollectSummary(
             str(out),
-            summarise(plan, records, out, config.sensors),
+            scenarios,
             attempts,
             clips,
             time.monotonic() - t0,
             list(plan.skipped),
             config.sensors,
             session.lost,
+            _space_needed(out, records, session, scenarios, config.sensors) if session.disk_full else None,
         )
         _write_summary(out, summary)
         return summary
+
+
+def _space_needed(
+    out: Path, records: list[dict[str, Any]], session: _Session, scenarios: list[ScenarioSummary], sensors: bool
+) -> SpaceNeeded:
+    """The space the missing clips need, from the corpus's clips or the attempts the full disk stopped."""
+    finals = rl.final_records(records)
+    clip_dirs = [out / str(r.get("clip")) for r in finals if _is_clip(r, out, sensors) and sensors]
+    stopped = [r for r in finals if r.get("note") == DISK_FULL]
+    missing = sum(max(s.requested - s.clips, 0) for s in scenarios)
+    return space_needed(out, clip_dirs, stopped, missing, session.state.typical_frames())
 
 
 def _resume(
@@ -293,8 +315,10 @@ class _Session:
         self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
         self.retries: Counter[str] = Counter()
-        #: Attempts of this run lost with their worker (not counted as attempts).
+        #: Attempts of this run lost with their worker or to a full disk (not counted as attempts).
         self.lost = 0
+        #: Set by the first attempt that found the disk full: no route starts after it.
+        self.disk_full = False
         self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
         mine = set().union(*ids_of.values()) if ids_of else set()
         self.state.finished_frames = [
@@ -308,7 +332,9 @@ class _Session:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
 
     def _next_task(self, order: deque[str]) -> RouteTask | None:
-        """Round robin over scenarios that still need clips and have routes left."""
+        """Round robin over scenarios that still need clips and have routes left (none once the disk is full)."""
+        if self.disk_full:
+            return None
         for _ in range(len(order)):
             scenario = order[0]
             order.rotate(-1)
@@ -359,10 +385,14 @@ class _Session:
                     break
                 for task, result in backend.wait(timeout=REFRESH_SECONDS):
                     self.in_flight[task.scenario] -= 1
-                    if result.note == WORKER_LOST:
+                    if result.note in LOST_NOTES:
                         self.lost += 1
                     else:
                         attempts += 1
+                    if result.note == DISK_FULL and not self.disk_full:
+                        self.disk_full = True
+                        log.warning("the disk of %s is full: no new route starts (%d still running)", self.out,
+                                    backend.running())  # fmt: skip
                     if result.status == STATUS_CLIP:
                         self.done[task.scenario] += 1
                         clips += 1
@@ -457,6 +487,6 @@ def summary_table(summary: CollectSummary) -> str:
     lines.append("  ".join("-" * w for w in widths))
     lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
     if any(s.lost for s in summary.scenarios):
-        lines.append("lost: attempts whose worker process died (killed, crashed, node lost): no verdict on the route, "
-                     "which runs again; they count in neither attempts nor success")  # fmt: skip
+        lines.append("lost: attempts whose worker process died (killed, crashed, node lost) or whose disk was full: "
+                     "no verdict on the route, which runs again; they count in neither attempts nor success")  # fmt: skip
     return "\n".join(lines)

@@ -79,7 +79,7 @@ def test_the_retry_of_a_route_whose_lost_worker_renamed_its_clip_adopts_it(short
     # The lost attempt is no verdict on the route: 1 attempt (the adopted clip), 1 lost, 100 %.
     assert [summary["scenarios"][0][k] for k in ("attempts", "lost", "success_rate")] == [1, 1, 1.0]
     assert (summary["attempts_this_run"], summary["lost_this_run"]) == (1, 1)
-    assert "1 clips from 1 attempts (+1 lost with their worker)" in capsys.readouterr().out
+    assert "1 clips from 1 attempts (+1 lost) in" in capsys.readouterr().out
 
 
 def _finished(out: Path, route_id: int, success: bool | None, clip_on_disk: bool) -> str:
@@ -239,3 +239,94 @@ def test_attempts_lost_with_their_worker_are_not_route_failures(tmp_path):
     assert table[0].split() == ["scenario", "clips", "attempts", "lost", "success", "main", "failure", "reasons"]
     assert table[2].split() == ["Accident", "2/2", "2", "2", "100%", "—"]
     assert table[3].startswith("lost: attempts whose worker process died")
+
+
+def test_a_full_disk_stops_the_run_and_says_how_much_space_to_free(short_routes, tmp_path, monkeypatch, capsys):  # noqa: F811, E501
+    """Audit case 3: on a full disk every later route was started into it (and spent an attempt), and the last
+    line said 'raise --attempts-per-clip'. ENOSPC is injected into the writer from frame 5 of the route after the
+    first clip."""
+    import errno
+    import os
+
+    from b2d_data.writers import frame_jobs
+
+    out = tmp_path / "data"
+    real_run = frame_jobs.MiscJob.run
+
+    def full_once_a_clip_exists(self):
+        if self.index >= 5 and any(p.name.startswith("Accident_") for p in out.iterdir()):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), self.clip_dir)
+        return real_run(self)
+
+    monkeypatch.setattr(frame_jobs.MiscJob, "run", full_once_a_clip_exists)
+    args = _args(short_routes, out, "--workers", "1")  # in this process, where the writer is patched
+    assert main(args) == 1  # --n 2 of 3 routes
+
+    records = rl.read_run_log(out / rl.LOG_FILE)
+    finals = rl.final_records(records)
+    # Route 1 made its clip, route 2 hit the full disk, route 3 was never started.
+    assert [r["route_id"] for r in records if r["event"] == rl.EVENT_START] == ["1", "2"]
+    assert [(r["route_id"], r["status"], r["note"]) for r in finals] == [("1", "clip", ""), ("2", "error", "disk full")]
+    assert finals[1]["frames"] == 5 and finals[1]["bytes_written"] > 0  # what it wrote before frame 5 failed
+    clip = out / finals[0]["clip"]
+    # The estimate by hand: the one clip's size (every file under it) times the 1 missing clip.
+    size = sum(p.stat().st_size for p in clip.rglob("*") if p.is_file())
+    assert size == finals[0]["bytes_written"] + len((clip / "b2d_format.json").read_bytes())
+    err = capsys.readouterr().err
+    mb = f"{size / 1e6:.1f} MB"
+    assert f"the 1 missing clip(s) need about {mb} ({mb} per clip, measured on 1 clip(s))" in err, err
+    assert "then run the same command with --resume" in err and "attempts-per-clip" not in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["disk_full"]["needed_bytes"] == size and summary["disk_full"]["missing_clips"] == 1
+    # Route 2 is no verdict on the route: 1 attempt, 1 lost.
+    assert [summary["scenarios"][0][k] for k in ("clips", "attempts", "lost")] == [1, 1, 1]
+
+    monkeypatch.undo()  # space freed: the resume runs route 2 again and finishes
+    assert main([*args, "--resume"]) == 0
+    finals = rl.final_records(rl.read_run_log(out / rl.LOG_FILE))
+    assert [(r["route_id"], r["status"]) for r in finals[2:]] == [("2", "clip")] and len(_clips(out)) == 2
+
+
+def test_a_full_disk_under_the_drivers_own_files_is_one_clear_line(short_routes, tmp_path, monkeypatch, capsys):  # noqa: F811, E501
+    import errno
+    import os
+
+    def full(self, record):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
+
+    monkeypatch.setattr(rl.RunLog, "append", full)
+    out = tmp_path / "data"
+    assert main(_args(short_routes, out)) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"b2d-collect: error: {out / rl.LOG_FILE}: no space left on device; free space, then run the "
+                       "same command with --resume"), err  # fmt: skip
+
+
+def test_disk_full_is_recognised_through_wrappers_and_hdf5_text():
+    import errno
+
+    from b2d_data.collection.disk_space import is_disk_full
+    from b2d_data.writers.clip_writer import ClipWriterError
+
+    try:
+        try:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        except OSError as exc:
+            raise ClipWriterError("clip: frame 3 failed") from exc
+    except ClipWriterError as wrapped:
+        assert is_disk_full(wrapped)
+    # h5py's error (audit case 3) carries the errno only in its text.
+    assert is_disk_full(RuntimeError("Disable slist on flush dest failure failed (file write failed: errno = 28, "
+                                     "error message = 'No space left on device')"))  # fmt: skip
+    assert not is_disk_full(OSError(errno.EACCES, "Permission denied"))
+
+
+def test_without_a_clip_the_space_needed_comes_from_the_bytes_per_frame(tmp_path):
+    from b2d_data.collection.disk_space import space_needed
+
+    stopped = [{"frames": 5, "bytes_written": 50_000}, {"frames": 0, "bytes_written": 0}]
+    need = space_needed(tmp_path, [], stopped, missing_clips=2, frames_per_clip=300.0)
+    # 50 000 B / 5 frames = 10 kB per frame; x 300 frames x 2 clips = 6 000 000 B.
+    assert need.per_clip_bytes is None and need.per_frame_bytes == 10_000 and need.needed_bytes == 6_000_000
+    assert "the 2 missing clip(s) need about 6.0 MB (10 kB per frame written before the disk filled, ~300 frames " \
+           "per route)" in need.describe()

@@ -213,8 +213,11 @@ def main(argv: list[str] | None = None) -> int:
     previous_level = root.level
     root.setLevel(level)
     previous_term = stop_on_sigterm()
+    from b2d_data.collection.temp_dir import private_temp_dir
+
     try:
-        return _run(parser, args)
+        with private_temp_dir():  # no pymp-* folder outlives a killed run
+            return _run(parser, args)
     finally:
         root.removeHandler(handler)
         root.setLevel(previous_level)

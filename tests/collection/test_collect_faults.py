@@ -7,7 +7,15 @@ exact moment (1 ms after a rename) are staged: the route really runs, then the d
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -18,13 +26,13 @@ from b2d_data.collection.backends import WORKER_LOST, InlineBackend, error_resul
 from b2d_data.collection.job import ADOPTED, CollectConfig, write_route_results
 from b2d_data.format import leaderboard as lb
 
+from ..conftest import alive, assert_all_exit, descendants
 from .test_collect import _args, _clips, short_routes  # noqa: F401 - fixture
 
 
 class _LostAfterRename:
     """Runs routes in this process, but the first attempt's worker "dies" right after renaming its clip: the clip
     and its success record are on disk, and the driver hears only that the worker was lost."""
-
     capacity = 1
 
     def __init__(self, out: Path, config: CollectConfig, on_frames=None) -> None:
@@ -186,10 +194,6 @@ def test_killing_an_idle_worker_does_not_hang_the_driver(tmp_path):
     """Audit case 1h: a real pool of 2 workers; worker A (idle, inside the pool's queue lock) is killed while B
     runs a 6 s task. The pool stops B with SIGTERM; before the fix B took the SystemExit for its task's error,
     went back to the queue, waited for ever on the lock A held, and the driver's exit waited for B."""
-    import os
-    import subprocess
-    import sys
-
     import b2d_data
 
     (tmp_path / "naps.py").write_text(_NAPS)
@@ -208,8 +212,6 @@ def test_killing_an_idle_worker_does_not_hang_the_driver(tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f"lost [('2', '{WORKER_LOST}')]", done.stdout  # B's task came back as lost
     assert "did not stop" not in done.stderr and "leaked" not in done.stderr, done.stderr
-    from ..conftest import alive
-
     busy = int((out / "started-2").read_text())
     assert not alive(busy)
 
@@ -245,9 +247,6 @@ def test_a_full_disk_stops_the_run_and_says_how_much_space_to_free(short_routes,
     """Audit case 3: on a full disk every later route was started into it (and spent an attempt), and the last
     line said 'raise --attempts-per-clip'. ENOSPC is injected into the writer from frame 5 of the route after the
     first clip."""
-    import errno
-    import os
-
     from b2d_data.writers import frame_jobs
 
     out = tmp_path / "data"
@@ -288,9 +287,6 @@ def test_a_full_disk_stops_the_run_and_says_how_much_space_to_free(short_routes,
 
 
 def test_a_full_disk_under_the_drivers_own_files_is_one_clear_line(short_routes, tmp_path, monkeypatch, capsys):  # noqa: F811, E501
-    import errno
-    import os
-
     def full(self, record):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
 
@@ -303,7 +299,6 @@ def test_a_full_disk_under_the_drivers_own_files_is_one_clear_line(short_routes,
 
 
 def test_disk_full_is_recognised_through_wrappers_and_hdf5_text():
-    import errno
 
     from b2d_data.collection.disk_space import is_disk_full
     from b2d_data.writers.clip_writer import ClipWriterError
@@ -330,3 +325,64 @@ def test_without_a_clip_the_space_needed_comes_from_the_bytes_per_frame(tmp_path
     assert need.per_clip_bytes is None and need.per_frame_bytes == 10_000 and need.needed_bytes == 6_000_000
     assert "the 2 missing clip(s) need about 6.0 MB (10 kB per frame written before the disk filled, ~300 frames " \
            "per route)" in need.describe()
+
+
+def test_a_killed_driver_leaves_no_multiprocessing_folder_after_the_next_run(short_routes, tmp_path):  # noqa: F811
+    """Audit section 1: every killed driver left ``$TMPDIR/pymp-*/listener-*`` (multiprocessing's fork server
+    socket), removed only at a normal exit. Now it lies in the run's own folder, which the next run removes."""
+    # A short TMPDIR: the fork server's socket path must fit 103 bytes (pytest's tmp_path is too deep).
+    temp = Path(tempfile.mkdtemp(prefix="b2dt", dir="/tmp"))
+    try:
+        _kill_then_run_again(short_routes, tmp_path, temp)
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+def _kill_then_run_again(short_routes, tmp_path: Path, temp: Path) -> None:  # noqa: F811
+    env = dict(os.environ, TMPDIR=str(temp))
+    args = _args(short_routes, tmp_path / "records", "--workers", "2", "--no-sensors")
+    proc = subprocess.Popen([sys.executable, "-m", "b2d_data.cli.collect", *args], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    helpers: set[int] = set()
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None:
+            helpers |= descendants(proc.pid)
+            if list(temp.rglob("listener-*")) and len(helpers) >= 3:  # fork server and workers are up
+                break
+            time.sleep(0.05)
+        helpers |= descendants(proc.pid)
+        assert proc.poll() is None, "the collection ended before it could be killed"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert_all_exit(helpers)
+    left = [p.name for p in temp.iterdir()]
+    assert len(left) == 1 and left[0].startswith(f"b2d-collect-{proc.pid}-"), left  # not a bare pymp-*
+    assert list((temp / left[0]).glob("pymp-*/listener-*"))
+
+    # What is not a dead run's folder stays: a live driver's (this process) and anything else.
+    kept = sorted([f"b2d-collect-{os.getpid()}-live", "pymp-other"])
+    for name in kept:
+        (temp / name).mkdir()
+    done = subprocess.run([sys.executable, "-m", "b2d_data.cli.collect", "--list-scenarios"], env=env,
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in temp.iterdir()) == kept  # the dead run's folder and the new run's own are gone
+
+
+def test_a_temporary_folder_too_deep_for_the_fork_server_socket_is_left_alone(tmp_path, monkeypatch):
+    """The fork server binds its socket at <run folder>/pymp-XXXXXXXX/listener-XXXXXXXX: at most 103 bytes."""
+    from b2d_data.collection import temp_dir
+
+    # 60 + 1 + the run folder's name (at least 12 + 1 + 1 + 8) + 32 > 103, whatever tmp_path is.
+    deep = tmp_path / ("d" * 60)
+    deep.mkdir()
+    monkeypatch.setattr(temp_dir, "_folder", None)
+    monkeypatch.setattr(tempfile, "tempdir", str(deep))
+    monkeypatch.setenv("TMPDIR", str(deep))
+    with temp_dir.private_temp_dir() as folder:
+        assert folder == deep and os.environ["TMPDIR"] == str(deep) and not list(deep.iterdir())

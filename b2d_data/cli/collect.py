@@ -213,8 +213,11 @@ def main(argv: list[str] | None = None) -> int:
     previous_level = root.level
     root.setLevel(level)
     previous_term = stop_on_sigterm()
+    from b2d_data.collection.temp_dir import private_temp_dir
+
     try:
-        return _run(parser, args)
+        with private_temp_dir():  # no pymp-* folder outlives a killed run
+            return _run(parser, args)
     finally:
         root.removeHandler(handler)
         root.setLevel(previous_level)
@@ -262,6 +265,7 @@ class ProgressLine(TickingBar):
 
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    from b2d_data.collection.disk_space import is_disk_full
     from b2d_data.collection.plan import CollectError, implemented_scenarios
     from b2d_data.collection.runner import collect, summary_table
     from b2d_data.collection.towns import TownError
@@ -282,19 +286,31 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         line.close()
         print(f"{PROG}: interrupted; run the same command with --resume to finish", file=sys.stderr)
         return 130
+    except OSError as exc:
+        if not is_disk_full(exc):
+            raise
+        line.close()  # the driver's own files (run log, summary) hit the full disk
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{PROG}: error: {where}no space left on device; free space, then run the same command with --resume",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_SHORT
     line.close()
     print(summary_table(summary))
     per_clip = summary.seconds_per_clip
     timing = f", {per_clip:.1f} s per clip" if per_clip is not None else ""
     kind = "records" if not summary.sensors else "clips"
+    lost = f" (+{summary.lost_this_run} lost)" if summary.lost_this_run else ""  # the table says what lost is
     print(
-        f"{summary.clips_this_run} {kind} from {summary.attempts_this_run} attempts in "
+        f"{summary.clips_this_run} {kind} from {summary.attempts_this_run} attempts{lost} in "
         f"{summary.wall_seconds:.1f} s{timing}; summary in {Path(summary.out) / 'summary.json'}"
     )
     if summary.skipped_routes:
         print(f"skipped {len(summary.skipped_routes)} route(s) without a map: {', '.join(summary.skipped_routes[:10])}")
     if not summary.complete:
         short = [f"{s.scenario} {s.clips}/{s.requested}" for s in summary.scenarios if not s.complete]
+        if summary.disk_full is not None:
+            print(f"{PROG}: targets not met: {', '.join(short)}: {summary.disk_full.describe()}", file=sys.stderr)
+            return EXIT_SHORT
         # a route file's routes are fixed: only generated collections can try other routes
         hint = (f"why each route failed: {Path(summary.out) / 'run_log.jsonl'}" if args.routes is not None
                 else "raise --attempts-per-clip or use another --seed")  # fmt: skip

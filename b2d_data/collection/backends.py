@@ -7,17 +7,20 @@ directly, from pool workers through a queue drained in :meth:`Backend.wait`, fro
 from __future__ import annotations
 
 import logging
+import multiprocessing.util
 import os
 import queue
 import signal
+import sys
 import time
 from collections import deque
+from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as wait_futures
 from concurrent.futures.process import BrokenProcessPool
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, NoReturn, Protocol
 
 from b2d_data.collection.job import (
     STATUS_ERROR,
@@ -113,9 +116,45 @@ class InlineBackend:
         shutdown_encoders()
 
 
+#: Whether this pool worker is inside a task (set by :func:`_pool_task`).
+_in_task = False
+
+
 def _leave(signum: int, frame: object) -> None:
-    """SIGTERM in a pool worker: unwind (the route's writer and simulator clean up), then exit normally."""
-    raise SystemExit(0)
+    """SIGTERM in a pool worker: unwind a running task (the route's writer and simulator clean up), then exit;
+    an idle worker exits at once."""
+    # Nothing may cut the clean-up short: the pool sends another SIGTERM when a sibling exits first.
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if _in_task:
+        raise SystemExit(0)  # _pool_task ends the process once the task has unwound
+    _exit_worker()
+
+
+def _exit_worker() -> NoReturn:
+    """End this pool worker the way multiprocessing ends its processes: run the finalizers (encoder pools, named
+    semaphores, shared memory), then ``os._exit``.
+
+    Never back into the pool's loop: it takes a SystemExit for the task's own error and waits on its call queue
+    again, where the lock of a sibling killed while idle blocks it for ever, and the driver's exit waits on it.
+    """
+    try:
+        multiprocessing.util._exit_function()
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+    finally:
+        os._exit(0)
+
+
+def _pool_task(job: Callable[..., JobResult], *args: Any) -> JobResult:
+    """Run one task in a pool worker; a task that SIGTERM stopped ends the worker."""
+    global _in_task
+    try:
+        _in_task = True
+        return job(*args)
+    except SystemExit:
+        _exit_worker()
+    finally:
+        _in_task = False
 
 
 def _worker_init(log_level: int, driver_pid: int, reports: Any, rasteriser_threads: int = 0) -> None:
@@ -135,13 +174,26 @@ def _worker_init(log_level: int, driver_pid: int, reports: Any, rasteriser_threa
 
 
 class ProcessPoolBackend:
-    """Runs tasks in ``workers`` processes of this machine; each process owns its simulator and map cache."""
+    """Runs tasks in ``workers`` processes of this machine; each process owns its simulator and map cache.
 
-    def __init__(self, out: Path, config: CollectConfig, workers: int, on_frames: FrameSink | None = None) -> None:
+    ``job`` is what a worker runs per task, ``job(route, town, out, config, seed)`` (the route job; tests pass an
+    importable stand-in).
+    """
+
+    def __init__(
+        self,
+        out: Path,
+        config: CollectConfig,
+        workers: int,
+        on_frames: FrameSink | None = None,
+        job: Callable[..., JobResult] = run_route_job,
+    ) -> None:
         import multiprocessing
 
-        self.out, self.config, self.capacity, self.on_frames = out, config, workers, on_frames
+        self.out, self.config, self.capacity, self.on_frames, self.job = out, config, workers, on_frames, job
         self._futures: dict[Future[JobResult], RouteTask] = {}
+        #: Workers of broken pools, stopped (SIGTERM) by the pool itself; killed at close() if still alive.
+        self._orphans: list[Any] = []
         # spawn/forkserver: a worker never inherits the driver's threads (tqdm, GL) mid-state.
         method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         self._context = multiprocessing.get_context(method)
@@ -172,11 +224,13 @@ class ProcessPoolBackend:
 
     def submit(self, task: RouteTask) -> None:
         """Start the task in a worker."""
+        args = (_pool_task, self.job, task.route, task.town, self.out, self.config, task.seed)
         try:
-            future = self._pool.submit(run_route_job, task.route, task.town, self.out, self.config, task.seed)
+            future = self._pool.submit(*args)
         except BrokenProcessPool:
+            self._orphans += _processes(self._pool)
             self._pool = self._new_pool()
-            future = self._pool.submit(run_route_job, task.route, task.town, self.out, self.config, task.seed)
+            future = self._pool.submit(*args)
         self._futures[future] = task
 
     def wait(self, timeout: float | None = None) -> list[tuple[RouteTask, JobResult]]:
@@ -196,6 +250,7 @@ class ProcessPoolBackend:
                 out.append((task, error_result(task, f"{type(exc).__name__}: {exc}")))
         if broken:
             log.warning("a worker process died; starting a new pool")
+            self._orphans += _processes(self._pool)
             self._pool.shutdown(wait=False, cancel_futures=True)
             # The other tasks of a broken pool fail too; they are reported, not lost.
             for future, task in list(self._futures.items()):
@@ -214,22 +269,35 @@ class ProcessPoolBackend:
             self._abandon()
         else:
             self._pool.shutdown(wait=True, cancel_futures=True)
+        # A broken pool's manager thread waits for its workers, and the interpreter's exit for that thread.
+        _join_or_kill(self._orphans, ABANDON_GRACE)
+        self._orphans.clear()
         self._reports.close()
         self._reports.join_thread()
 
     def _abandon(self) -> None:
         """Stop the workers now (a route can run for minutes): SIGTERM drops their routes, a late one is killed."""
-        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        processes = _processes(self._pool)
         for process in processes:
             process.terminate()
         self._pool.shutdown(wait=False, cancel_futures=True)
-        deadline = time.monotonic() + ABANDON_GRACE
-        for process in processes:
-            process.join(timeout=max(deadline - time.monotonic(), 0.0))
-            if process.is_alive():
-                log.warning("worker %d did not stop within %.0f s; killing it", process.pid, ABANDON_GRACE)
-                process.kill()
-                process.join(timeout=5.0)
+        _join_or_kill(processes, ABANDON_GRACE)
+
+
+def _processes(pool: ProcessPoolExecutor) -> list[Any]:
+    """The worker processes of a pool (``multiprocessing.Process`` objects)."""
+    return list((getattr(pool, "_processes", None) or {}).values())
+
+
+def _join_or_kill(processes: list[Any], grace: float) -> None:
+    """Wait up to ``grace`` seconds for stopped workers to exit; kill the late ones."""
+    deadline = time.monotonic() + grace
+    for process in processes:
+        process.join(timeout=max(deadline - time.monotonic(), 0.0))
+        if process.is_alive():
+            log.warning("worker %d did not stop within %.0f s; killing it", process.pid, grace)
+            process.kill()
+            process.join(timeout=5.0)
 
 
 def make_backend(out: Path, config: CollectConfig, on_frames: FrameSink | None = None) -> Backend:

@@ -27,18 +27,16 @@ from b2d_data.collection.job import (
     FAILED_DIR,
     RESULTS_DIR,
     STATUS_CLIP,
-    STATUS_FAILED,
+    STATUS_ERROR,
     CollectConfig,
-    JobResult,
     move_to_failed,
     process_alive,
+    recovered_result,
 )
 from b2d_data.collection.plan import FIXED_SETTINGS, PLANNED_ROUTES_DIR, CollectError
 from b2d_data.collection.towns import (
     TOWNS_DIR,
 )
-from b2d_data.format import leaderboard as lb
-from b2d_data.format.errors import B2DFormatError
 from b2d_data.format.names import ClipName, ClipNameError
 from b2d_data.format.version import FORMAT_FILE
 
@@ -135,31 +133,6 @@ def _clips_on_disk(out: Path) -> dict[str, Path]:
     return found
 
 
-def _recovered(path: Path) -> JobResult | None:
-    """A run-log record rebuilt from a route's result file written just before a crash."""
-    try:
-        results = lb.read_results(path)
-        name = ClipName.parse(path.stem)
-    except (B2DFormatError, ClipNameError, OSError):
-        return None
-    if not results.records:
-        return None
-    record = results.records[0]
-    extra = record.extra.get("b2d_collect")
-    if not isinstance(extra, dict):
-        return None  # the record of a job that crashed: no verdict on the route, run it again
-    success = bool(extra.get("success", record.success))
-    kinds = {k: len(v) for k, v in record.infractions.items() if v}
-    return JobResult(
-        route_id=str(name.route_id), scenario=name.xml_type, town=name.town, weather_id=name.weather_id,
-        seed=int(extra.get("seed", 0)), status=STATUS_CLIP if success else STATUS_FAILED, success=success,
-        clip=str(name), route_status=record.status, infractions=kinds,
-        score_composed=float(record.scores.score_composed), score_route=float(record.scores.score_route),
-        duration_game=float(record.meta.duration_game), duration=float(record.meta.duration_system),
-        reason="" if success else record.status, note="recovered from results/ after an interruption",
-    )  # fmt: skip
-
-
 @dataclass
 class ResumeReport:
     """What a resume found: the work kept, the work adopted from the disk, and what it threw away."""
@@ -174,7 +147,7 @@ class ResumeReport:
     interrupted: list[str] = field(default_factory=list)
     #: Half-written temporaries removed (paths relative to the corpus).
     discarded: list[str] = field(default_factory=list)
-    #: Complete clips without a route record, moved to failed/ (relative paths).
+    #: Complete clips that no attempt of the run log counts, moved to failed/ (relative paths).
     set_aside: list[str] = field(default_factory=list)
 
     def describe(self) -> str:
@@ -190,39 +163,45 @@ class ResumeReport:
         if self.discarded:
             parts.append(f"discarded {len(self.discarded)} half-written temporary item(s) ({some(self.discarded)})")
         if self.set_aside:
-            parts.append(f"moved {len(self.set_aside)} clip(s) without a record to {FAILED_DIR}/")
+            parts.append(f"moved {len(self.set_aside)} clip(s) that no attempt counts to {FAILED_DIR}/")
         if self.interrupted:
             parts.append(f"{len(self.interrupted)} interrupted route(s) run again: {some(self.interrupted)}")
         return "resume: " + "; ".join(parts)
 
 
 def reconcile(out: Path, records: list[dict[str, Any]], config: CollectConfig, run_log: rl.RunLog) -> ResumeReport:
-    """Adopt what reached the disk before a crash but not the run log: clips and route records."""
+    """Adopt what reached the disk before a crash but not the run log (clips and route records); set aside every
+    clip that the run log does not count."""
     report = ResumeReport()
-    finished = {str(r.get("route_id")) for r in rl.final_records(records)}
+    finals = rl.final_records(records)
+    # Routes with a verdict; those whose attempts all ended in an error (a lost worker, a crash) have none.
+    decided = {str(r.get("route_id")) for r in finals if r.get("status") != STATUS_ERROR}
+    counted = {str(r.get("route_id")) for r in finals if r.get("status") == STATUS_CLIP}
     clips = _clips_on_disk(out)
     results_dir = out / RESULTS_DIR
     for path in sorted(results_dir.glob("*.json")) if results_dir.is_dir() else []:
-        recovered = _recovered(path)
-        if recovered is None or recovered.route_id in finished:
+        recovered = recovered_result(path)
+        if recovered is None or recovered.route_id in decided:
             continue
         clip_dir = clips.get(recovered.route_id)
         if recovered.success:
             if config.sensors and clip_dir is None:
                 continue  # killed between the record and the clip: run the route again
             recovered.clip_path = clip_dir.name if clip_dir is not None else None
+            counted.add(recovered.route_id)
         elif clip_dir is not None:
             # Killed between closing a failed clip and moving it (keep_failed): finish the move.
             recovered.clip_path = move_to_failed(out, clip_dir.name)
         log.info("adopting the finished attempt of route %s from %s", recovered.route_id, path)
         run_log.append(recovered.to_record())
         records.append(recovered.to_record())
-        finished.add(recovered.route_id)
+        decided.add(recovered.route_id)
         report.adopted.append(recovered.route_id)
     for route_id, clip_dir in clips.items():
-        if route_id not in finished:
-            # A complete clip without any record cannot be vouched for: keep it aside, never count it.
-            log.warning("clip %s has no route record; moving it to %s/", clip_dir.name, FAILED_DIR)
+        if route_id not in counted and clip_dir.is_dir():
+            # A complete clip that no attempt counts (no record, or a crash record written over it by an older
+            # version's retry) cannot be vouched for: keep it aside, never count it.
+            log.warning("clip %s is not counted by the run log; moving it to %s/", clip_dir.name, FAILED_DIR)
             report.set_aside.append(move_to_failed(out, clip_dir.name))
     return report
 

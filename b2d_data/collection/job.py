@@ -8,7 +8,10 @@ without infraction (min-speed aside). Whatever happens inside, the job returns a
 
 Order of the on-disk effects (what resume relies on): the route's Leaderboard record ``<out>/results/<clip>.json`` is
 written first, then the clip is closed into ``<out>/<clip>`` (or moved to ``<out>/failed/<clip>`` with
-``keep_failed``, or dropped), and only then does the driver append the attempt to the run log.
+``keep_failed``, or dropped), and only then does the driver append the attempt to the run log. A worker that dies
+between the rename and the driver's log line leaves a complete clip and its success record that no log line counts:
+the driver runs the route again, and that attempt adopts them (:func:`finished_clip`) instead of failing on the
+existing folder or recording a crash over them; a resume adopts them the same way (``corpus.reconcile``).
 """
 
 from __future__ import annotations
@@ -31,10 +34,13 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from b2d_data.collection.disk_space import DISK_FULL, is_disk_full
 from b2d_data.collection.progress import FrameReporter
 from b2d_data.collection.towns import TownSource, ensure_hdmap, load_map
+from b2d_data.codecs.format_info import read_format_info
 from b2d_data.format import leaderboard as lb
-from b2d_data.format.names import ClipName, canonical_clip_prefix
+from b2d_data.format.errors import B2DFormatError
+from b2d_data.format.names import ClipName, ClipNameError, canonical_clip_prefix
 from b2d_data.format.scenario_types import NO_SCENARIO
 from b2d_data.format.version import DEFAULT_FORMAT, FormatVersion
 from b2d_data.format.weather import PRESETS, WeatherParameters, weather_id_of
@@ -121,6 +127,8 @@ class JobResult:
     score_composed: float = 0.0
     score_route: float = 0.0
     frames: int = 0
+    #: Bytes the attempt's clip writer wrote (the clip's size when kept; up to the error otherwise).
+    bytes_written: int = 0
     ticks: int = 0
     duration_game: float = 0.0
     duration: float = 0.0
@@ -299,6 +307,54 @@ def _crash_record(route: Route, town: str, message: str) -> lb.RouteRecord:
     )  # fmt: skip
 
 
+def recovered_result(path: Path, note: str = "recovered from results/ after an interruption") -> JobResult | None:
+    """The attempt that a route record ``results/<clip>.json`` holds a verdict of; None for a crash record (no
+    verdict on the route) or an unreadable file."""
+    try:
+        results = lb.read_results(path)
+        name = ClipName.parse(path.stem)
+    except (B2DFormatError, ClipNameError, OSError):
+        return None
+    if not results.records:
+        return None
+    record = results.records[0]
+    extra = record.extra.get("b2d_collect")
+    if not isinstance(extra, dict):
+        return None  # the record of a job that crashed: no verdict on the route, run it again
+    success = bool(extra.get("success", record.success))
+    kinds = {k: len(v) for k, v in record.infractions.items() if v}
+    return JobResult(
+        route_id=str(name.route_id), scenario=name.xml_type, town=name.town, weather_id=name.weather_id,
+        seed=int(extra.get("seed", 0)), status=STATUS_CLIP if success else STATUS_FAILED, success=success,
+        clip=str(name), route_status=record.status, infractions=kinds,
+        score_composed=float(record.scores.score_composed), score_route=float(record.scores.score_route),
+        duration_game=float(record.meta.duration_game), duration=float(record.meta.duration_system),
+        reason="" if success else record.status, note=note,
+    )  # fmt: skip
+
+
+#: ``JobResult.note`` of an attempt that found its route's clip finished by an earlier attempt and adopted it.
+ADOPTED = "adopted the complete clip of an earlier attempt whose worker was lost"
+
+
+def finished_clip(out: Path, route: Route, town: str) -> JobResult | None:
+    """The attempt whose complete clip and success record are both in ``out`` (an earlier attempt of the route
+    whose worker died after renaming the clip, before the driver heard of it); None when either is missing."""
+    name = clip_name_of(route, town)
+    try:
+        info = read_format_info(out / str(name))
+    except (B2DFormatError, OSError):
+        return None
+    if info is None:
+        return None  # no clip, or a folder without b2d_format.json: never a finished clip
+    result = recovered_result(out / RESULTS_DIR / f"{name}.json", note=ADOPTED)
+    if result is None or not result.success:
+        return None
+    result.clip_path = str(name)
+    result.frames = int(info.frames)
+    return result
+
+
 class _FrameSink:
     """The route runner's frame callback: read the sensors, build the record, hand it to the writer.
 
@@ -401,22 +457,45 @@ def run_route_job(
     )  # fmt: skip
     try:
         result.weather_id = clip_weather_id(route)
-        _run(route, town, out, config, int(seed), result)
+        # A retry after a lost worker: that worker may have finished the clip before it died.
+        adopted = finished_clip(out, route, town.name)
+        if adopted is None:
+            _run(route, town, out, config, int(seed), result)
     except Exception as exc:  # noqa: BLE001 - one bad route is a logged attempt, never a crashed collection
-        result.status = STATUS_ERROR
-        result.success = False
-        result.reason = f"{type(exc).__name__}: {exc}"
-        result.error = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-12:])
-        log.warning("route %s: job failed: %s", route.id, result.reason)
-        log.debug("route %s traceback:\n%s", route.id, result.error)
-        try:
-            clip = str(clip_name_of(route, town.name))
-            write_route_results(out, clip, _crash_record(route, town.name, "Simulation crashed"))
-        except Exception:
-            log.debug("route %s: no record written for the failed job", route.id, exc_info=True)
+        # e.g. the clip appeared while this attempt ran: the lost worker was still finishing it
+        adopted = _finished_clip_or_none(out, route, town.name)
+        if adopted is None:
+            _record_crash(route, town, out, result, exc)
+    if adopted is not None:
+        log.warning("route %s: %s (%s)", route.id, ADOPTED, adopted.clip)
+        result = replace(adopted, started=result.started, host=result.host, pid=result.pid)
     result.duration = round(time.monotonic() - t_start, 3)
     result.finished = _now()
     return result
+
+
+def _finished_clip_or_none(out: Path, route: Route, town: str) -> JobResult | None:
+    try:
+        return finished_clip(out, route, town)
+    except Exception:  # noqa: BLE001 - e.g. a route id that makes no clip name: nothing to adopt
+        return None
+
+
+def _record_crash(route: Route, town: TownSource, out: Path, result: JobResult, exc: Exception) -> None:
+    """Fill ``result`` with the error and write the route's 'Simulation crashed' record."""
+    result.status = STATUS_ERROR
+    result.success = False
+    result.reason = f"{type(exc).__name__}: {exc}"
+    if is_disk_full(exc):
+        result.note = DISK_FULL  # the driver starts no new route
+    result.error = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-12:])
+    log.warning("route %s: job failed: %s", route.id, result.reason)
+    log.debug("route %s traceback:\n%s", route.id, result.error)
+    try:
+        clip = str(clip_name_of(route, town.name))
+        write_route_results(out, clip, _crash_record(route, town.name, "Simulation crashed"))
+    except Exception:
+        log.debug("route %s: no record written for the failed job", route.id, exc_info=True)
 
 
 def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed: int, result: JobResult) -> None:
@@ -519,10 +598,13 @@ def _run(route: Route, town: TownSource, out: Path, config: CollectConfig, seed:
                 result.clip_path = move_to_failed(out, str(name))
             else:
                 writer.abort()  # a no-op when the clip was already dropped
+            result.bytes_written = writer.bytes_written
             result.timings["close"] = round(time.perf_counter() - t, 3)
             writer = None
     finally:
         if writer is not None:
+            # What the attempt wrote before its error (a full disk's estimate of the space needed uses it).
+            result.frames, result.bytes_written = writer.frames_written, writer.bytes_written
             writer.abort()
         sim.close()
 

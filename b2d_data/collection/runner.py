@@ -21,6 +21,7 @@ from typing import Any
 
 from b2d_data.collection import run_log as rl
 from b2d_data.collection.backends import WORKER_LOST, Backend, make_backend
+from b2d_data.collection.disk_space import DISK_FULL, SpaceNeeded, space_needed
 from b2d_data.collection.corpus import (
     ResumeReport,
     check_settings,
@@ -71,10 +72,14 @@ class ScenarioSummary:
 
     scenario: str
     requested: int
+    #: Attempts that tried the route: clips, failures and route errors (not ``lost``).
     attempts: int = 0
     clips: int = 0
     failed: int = 0
     errors: int = 0
+    #: Attempts lost to the infrastructure (their worker died, a Ray node went away): no verdict on the route,
+    #: which ran again; they count in neither ``attempts`` nor the success rate.
+    lost: int = 0
     routes_planned: int = 0
     reasons: dict[str, int] = field(default_factory=dict)
     note: str = ""
@@ -100,11 +105,15 @@ class CollectSummary:
 
     out: str
     scenarios: list[ScenarioSummary]
+    #: Attempts of this run that tried their route (lost ones apart, see ``ScenarioSummary.lost``).
     attempts_this_run: int = 0
     clips_this_run: int = 0
     wall_seconds: float = 0.0
     skipped_routes: list[str] = field(default_factory=list)
     sensors: bool = True
+    lost_this_run: int = 0
+    #: Set when a full disk stopped the run: the space the missing clips need.
+    disk_full: SpaceNeeded | None = None
 
     @property
     def complete(self) -> bool:
@@ -121,6 +130,8 @@ class CollectSummary:
         return {
             "out": self.out, "complete": self.complete, "sensors": self.sensors,
             "attempts_this_run": self.attempts_this_run, "clips_this_run": self.clips_this_run,
+            "lost_this_run": self.lost_this_run,
+            "disk_full": None if self.disk_full is None else self.disk_full.to_dict(),
             "wall_seconds": round(self.wall_seconds, 3),
             "seconds_per_clip": None if self.seconds_per_clip is None else round(self.seconds_per_clip, 3),
             "skipped_routes": self.skipped_routes,
@@ -155,6 +166,16 @@ class Progress:
         return f"{routes + ' | ' if routes else ''}ETA {format_seconds(self.eta)}"
 
 
+#: ``JobResult.note`` of attempts lost to the infrastructure (a dead worker, a full disk), not run to a verdict.
+LOST_NOTES = frozenset({WORKER_LOST, DISK_FULL})
+
+
+def is_lost(record: dict[str, Any]) -> bool:
+    """Whether a run-log attempt was lost to the infrastructure (its worker died, its disk was full) rather than
+    run to its end."""
+    return record.get("note") in LOST_NOTES
+
+
 def _is_clip(record: dict[str, Any], out: Path, sensors: bool) -> bool:
     if record.get("status") != STATUS_CLIP:
         return False
@@ -162,7 +183,8 @@ def _is_clip(record: dict[str, Any], out: Path, sensors: bool) -> bool:
 
 
 def summarise(plan: CollectionPlan, records: list[dict[str, Any]], out: Path, sensors: bool) -> list[ScenarioSummary]:
-    """Per-scenario attempts, clips, failures and their main reasons, from the run log's finished attempts."""
+    """Per-scenario attempts, clips, failures and their main reasons, and the attempts lost with their worker,
+    from the run log's finished attempts."""
     finals = rl.final_records(records)
     out_list = []
     for sp in plan.scenarios:
@@ -171,6 +193,9 @@ def summarise(plan: CollectionPlan, records: list[dict[str, Any]], out: Path, se
         s = ScenarioSummary(sp.scenario, sp.target, routes_planned=len(sp.tasks), note=sp.error or "")
         reasons: Counter[str] = Counter()
         for r in mine:
+            if is_lost(r):
+                s.lost += 1
+                continue
             s.attempts += 1
             if _is_clip(r, out, sensors):
                 s.clips += 1
@@ -220,17 +245,31 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
         attempts, clips = session.run()
         if session.retries:  # what the lost workers were writing
             remove_temporaries(out)
+        scenarios = summarise(plan, records, out, config.sensors)
         summary = CollectSummary(
             str(out),
-            summarise(plan, records, out, config.sensors),
+            scenarios,
             attempts,
             clips,
             time.monotonic() - t0,
             list(plan.skipped),
             config.sensors,
+            session.lost,
+            _space_needed(out, records, session, scenarios, config.sensors) if session.disk_full else None,
         )
         _write_summary(out, summary)
         return summary
+
+
+def _space_needed(
+    out: Path, records: list[dict[str, Any]], session: _Session, scenarios: list[ScenarioSummary], sensors: bool
+) -> SpaceNeeded:
+    """The space the missing clips need, from the corpus's clips or the attempts the full disk stopped."""
+    finals = rl.final_records(records)
+    clip_dirs = [out / str(r.get("clip")) for r in finals if _is_clip(r, out, sensors) and sensors]
+    stopped = [r for r in finals if r.get("note") == DISK_FULL]
+    missing = sum(max(s.requested - s.clips, 0) for s in scenarios)
+    return space_needed(out, clip_dirs, stopped, missing, session.state.typical_frames())
 
 
 def _resume(
@@ -276,6 +315,10 @@ class _Session:
         self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
         self.retries: Counter[str] = Counter()
+        #: Attempts of this run lost with their worker or to a full disk (not counted as attempts).
+        self.lost = 0
+        #: Set by the first attempt that found the disk full: no route starts after it.
+        self.disk_full = False
         self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
         mine = set().union(*ids_of.values()) if ids_of else set()
         self.state.finished_frames = [
@@ -289,7 +332,9 @@ class _Session:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
 
     def _next_task(self, order: deque[str]) -> RouteTask | None:
-        """Round robin over scenarios that still need clips and have routes left."""
+        """Round robin over scenarios that still need clips and have routes left (none once the disk is full)."""
+        if self.disk_full:
+            return None
         for _ in range(len(order)):
             scenario = order[0]
             order.rotate(-1)
@@ -321,7 +366,8 @@ class _Session:
         self.report()
 
     def run(self, backend: Backend | None = None) -> tuple[int, int]:
-        """Launch and collect attempts until nothing is left to do; returns (attempts, clips) of this run."""
+        """Launch and collect attempts until nothing is left to do; returns (attempts, clips) of this run (lost
+        attempts apart, counted in ``lost``)."""
         attempts = clips = 0
         self.report(force=True)
         if backend is None:
@@ -339,7 +385,14 @@ class _Session:
                     break
                 for task, result in backend.wait(timeout=REFRESH_SECONDS):
                     self.in_flight[task.scenario] -= 1
-                    attempts += 1
+                    if result.note in LOST_NOTES:
+                        self.lost += 1
+                    else:
+                        attempts += 1
+                    if result.note == DISK_FULL and not self.disk_full:
+                        self.disk_full = True
+                        log.warning("the disk of %s is full: no new route starts (%d still running)", self.out,
+                                    backend.running())  # fmt: skip
                     if result.status == STATUS_CLIP:
                         self.done[task.scenario] += 1
                         clips += 1
@@ -421,16 +474,19 @@ def run_tasks(
 
 
 def summary_table(summary: CollectSummary) -> str:
-    """The end-of-run table: per scenario attempts, clips, success rate and main failure reasons."""
-    head = ("scenario", "clips", "attempts", "success", "main failure reasons")
+    """The end-of-run table: per scenario clips, attempts, attempts lost with their worker, success rate (of the
+    attempts) and main failure reasons."""
+    head = ("scenario", "clips", "attempts", "lost", "success", "main failure reasons")
     rows = []
     for s in summary.scenarios:
         reasons = "; ".join(f"{k} ×{v}" for k, v in list(s.reasons.items())[:3]) or ("—" if not s.note else s.note)
-        rows.append(
-            (s.scenario, f"{s.clips}/{s.requested}", str(s.attempts), f"{100 * s.success_rate:.0f}%", reasons[:90])
-        )
+        rows.append((s.scenario, f"{s.clips}/{s.requested}", str(s.attempts), str(s.lost),
+                     f"{100 * s.success_rate:.0f}%", reasons[:90]))  # fmt: skip
     widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(head, widths)).rstrip()]
     lines.append("  ".join("-" * w for w in widths))
     lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
+    if any(s.lost for s in summary.scenarios):
+        lines.append("lost: attempts whose worker process died (killed, crashed, node lost) or whose disk was full: "
+                     "no verdict on the route, which runs again; they count in neither attempts nor success")  # fmt: skip
     return "\n".join(lines)

@@ -200,6 +200,11 @@ class ClipWriter:
         """Number of frames accepted so far (some may still be encoding)."""
         return self._next_index
 
+    @property
+    def bytes_written(self) -> int:
+        """Bytes of the frames already on disk."""
+        return self._bytes
+
     def write(self, record: FrameRecord) -> None:
         """Validate one frame and write it (or queue it in the pool); indices must be consecutive from 0."""
         self._check_open()

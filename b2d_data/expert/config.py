@@ -261,7 +261,11 @@ class ExpertConfig:
         the invading cars reach offset + 0.3 m into the ego's lane (their edge, the flow keeping 0.7 m of a ~2 m
         car in its own lane), and in a bend the ego tracks its shifted route ~0.1 m short on the inside while the
         cars' corners sweep across the centre line: with the offset alone two invading cars touched the ego in
-        bends (routes 29160004 on Town101 and 29160005 on Town100, seed 29).
+        bends (routes 29160004 on Town101 and 29160005 on Town100, seed 29). The shift lasts until 25 m past the
+        cone nearest the flow's source (PDM-Lite: 10 m), i.e. 10 m past the source: invading cars are born there
+        until the ego has passed it, and with the shift ending 5 m before it the ego and a car just born in a bend
+        stood nose to nose until TickRuntime (routes 83160006-08 on Town101, seed 83).
         """
         extra = {**cls().extra_length_two_ways, **BUILTIN_EXTRA_LENGTH_TWO_WAYS}
-        return cls(extra_length_two_ways=extra, invading_turn_fence_margin=0.0, invading_turn_extra_shift=0.3)
+        return cls(extra_length_two_ways=extra, invading_turn_fence_margin=0.0, invading_turn_extra_shift=0.3,
+                   invading_turn_end=25.0)

@@ -105,6 +105,11 @@ class CollectSummary:
     wall_seconds: float = 0.0
     skipped_routes: list[str] = field(default_factory=list)
     sensors: bool = True
+    #: A preset's split manifest and its clips per part (train, val); None for other collections.
+    manifest: str | None = None
+    manifest_clips: tuple[int, int] = (0, 0)
+    #: A preset's official-list entries that have no clip slot, by reason (unknown scenario types ...).
+    left_out: dict[str, int] = field(default_factory=dict)
 
     @property
     def complete(self) -> bool:
@@ -124,6 +129,8 @@ class CollectSummary:
             "wall_seconds": round(self.wall_seconds, 3),
             "seconds_per_clip": None if self.seconds_per_clip is None else round(self.seconds_per_clip, 3),
             "skipped_routes": self.skipped_routes,
+            **({"manifest": self.manifest, "manifest_clips": list(self.manifest_clips), "left_out": self.left_out}
+               if self.manifest is not None else {}),
             "scenarios": [s.to_dict() for s in self.scenarios],
         }  # fmt: skip
 
@@ -162,27 +169,35 @@ def _is_clip(record: dict[str, Any], out: Path, sensors: bool) -> bool:
 
 
 def summarise(plan: CollectionPlan, records: list[dict[str, Any]], out: Path, sensors: bool) -> list[ScenarioSummary]:
-    """Per-scenario attempts, clips, failures and their main reasons, from the run log's finished attempts."""
-    finals = rl.final_records(records)
-    out_list = []
+    """Per-scenario attempts, clips, failures and their main reasons, from the run log's finished attempts (the
+    plans of one scenario, e.g. a preset's one per copied clip, add up to one row)."""
+    by_route: dict[str, list[dict[str, Any]]] = {}
+    for r in rl.final_records(records):
+        by_route.setdefault(str(r.get("route_id")), []).append(r)
+    rows: dict[str, ScenarioSummary] = {}
+    reasons: dict[str, Counter[str]] = {}
     for sp in plan.scenarios:
-        ids = {str(t.route.id) for t in sp.tasks}
-        mine = [r for r in finals if str(r.get("route_id")) in ids]
-        s = ScenarioSummary(sp.scenario, sp.target, routes_planned=len(sp.tasks), note=sp.error or "")
-        reasons: Counter[str] = Counter()
-        for r in mine:
+        s = rows.get(sp.scenario)
+        if s is None:
+            s = rows[sp.scenario] = ScenarioSummary(sp.scenario, 0)
+            reasons[sp.scenario] = Counter()
+        s.requested += sp.target
+        s.routes_planned += len(sp.tasks)
+        if sp.error and sp.error not in s.note:
+            s.note = f"{s.note}; {sp.error}" if s.note else sp.error
+        for r in (r for t in sp.tasks for r in by_route.get(str(t.route.id), ())):
             s.attempts += 1
             if _is_clip(r, out, sensors):
                 s.clips += 1
             elif r.get("status") == STATUS_ERROR:
                 s.errors += 1
-                reasons[f"error: {str(r.get('reason', ''))[:80]}"] += 1
+                reasons[sp.scenario][f"error: {str(r.get('reason', ''))[:80]}"] += 1
             else:
                 s.failed += 1
-                reasons[str(r.get("reason") or r.get("route_status") or "failed")] += 1
-        s.reasons = dict(reasons.most_common())
-        out_list.append(s)
-    return out_list
+                reasons[sp.scenario][str(r.get("reason") or r.get("route_status") or "failed")] += 1
+    for scenario, s in rows.items():
+        s.reasons = dict(reasons[scenario].most_common())
+    return list(rows.values())
 
 
 def _write_summary(out: Path, summary: CollectSummary) -> None:
@@ -229,8 +244,25 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
             list(plan.skipped),
             config.sensors,
         )
+        if plan.preset is not None:
+            summary.left_out = plan.preset.left_out()
+            if config.sensors:
+                _write_preset_manifest(out, plan, records, config, summary)
         _write_summary(out, summary)
         return summary
+
+
+def _write_preset_manifest(
+    out: Path, plan: CollectionPlan, records: list[dict[str, Any]], config: CollectConfig, summary: CollectSummary
+) -> None:
+    """The preset's split manifest of the clips made so far (rewritten by every session, so a resume completes it)."""
+    from b2d_data.collection.preset_plan import SPLITS_DIR, write_manifest
+
+    assert plan.preset is not None
+    made = {str(r.get("route_id")): str(r.get("clip")) for r in rl.final_records(records) if _is_clip(r, out, True)}
+    manifest = write_manifest(out, plan.preset, made, config)
+    summary.manifest = str(out / SPLITS_DIR / f"{manifest.name}.json")
+    summary.manifest_clips = (len(manifest.train), len(manifest.val))
 
 
 def _resume(
@@ -266,18 +298,22 @@ class _Session:
         finals = rl.final_records(records)
         # A route whose attempts all ended in an error (a crash, not a verdict on the route) is tried again.
         attempted = {str(r.get("route_id")) for r in finals if r.get("status") != STATUS_ERROR}
-        self.pending = {sp.scenario: deque(t for t in sp.tasks if str(t.route.id) not in attempted)
+        self.pending = {sp.key: deque(t for t in sp.tasks if str(t.route.id) not in attempted)
                         for sp in plan.scenarios}  # fmt: skip
-        ids_of = {sp.scenario: {str(t.route.id) for t in sp.tasks} for sp in plan.scenarios}
-        self.done = {sp.scenario: sum(1 for r in finals if str(r.get("route_id")) in ids_of[sp.scenario]
-                                      and _is_clip(r, out, config.sensors)) for sp in plan.scenarios}  # fmt: skip
-        self.attempts_before = sum(1 for r in finals if any(str(r.get("route_id")) in ids for ids in ids_of.values()))
-        self.target = {sp.scenario: sp.target for sp in plan.scenarios}
-        self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
+        # route id -> its target's key: one pass over the log however many targets (a preset has one per clip)
+        key_of = {str(t.route.id): sp.key for sp in plan.scenarios for t in sp.tasks}
+        self.done = {sp.key: 0 for sp in plan.scenarios}
+        for r in finals:
+            key = key_of.get(str(r.get("route_id")))
+            if key is not None and _is_clip(r, out, config.sensors):
+                self.done[key] += 1
+        self.attempts_before = sum(1 for r in finals if str(r.get("route_id")) in key_of)
+        self.target = {sp.key: sp.target for sp in plan.scenarios}
+        self.in_flight = {sp.key: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
         self.retries: Counter[str] = Counter()
         self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
-        mine = set().union(*ids_of.values()) if ids_of else set()
+        mine = set(key_of)
         self.state.finished_frames = [
             frames_of(int(r.get("ticks") or 0), int(r.get("frames") or 0))
             for r in finals
@@ -289,7 +325,7 @@ class _Session:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
 
     def _next_task(self, order: deque[str]) -> RouteTask | None:
-        """Round robin over scenarios that still need clips and have routes left."""
+        """Round robin over the targets (scenarios, a preset's clips) that still need clips and have routes left."""
         for _ in range(len(order)):
             scenario = order[0]
             order.rotate(-1)
@@ -338,10 +374,10 @@ class _Session:
                 if backend.running() == 0:
                     break
                 for task, result in backend.wait(timeout=REFRESH_SECONDS):
-                    self.in_flight[task.scenario] -= 1
+                    self.in_flight[task.key] -= 1
                     attempts += 1
                     if result.status == STATUS_CLIP:
-                        self.done[task.scenario] += 1
+                        self.done[task.key] += 1
                         clips += 1
                     record = result.to_record()
                     self.run_log.append(record)
@@ -371,7 +407,7 @@ class _Session:
         if result.note != WORKER_LOST or self.retries[route_id] >= LOST_WORKER_RETRIES:
             return
         self.retries[route_id] += 1
-        self.pending[task.scenario].appendleft(task)
+        self.pending[task.key].appendleft(task)
         log.warning("route %s: its worker was lost (%s); running it again", route_id, result.reason)
 
     def _launch(self, backend: Backend, task: RouteTask) -> None:
@@ -380,7 +416,7 @@ class _Session:
                  "time": datetime.now(timezone.utc).isoformat(timespec="milliseconds")}  # fmt: skip
         self.run_log.append(start)
         self.records.append(start)
-        self.in_flight[task.scenario] += 1
+        self.in_flight[task.key] += 1
         self.state.route_started(str(task.route.id), task.scenario)
         backend.submit(task)
 

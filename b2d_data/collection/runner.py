@@ -461,7 +461,9 @@ def summary_table(summary: CollectSummary) -> str:
     head = ("scenario", "clips", "attempts", "success", "main failure reasons")
     rows = []
     for s in summary.scenarios:
-        reasons = "; ".join(f"{k} ×{v}" for k, v in list(s.reasons.items())[:3]) or ("—" if not s.note else s.note)
+        # a preset's type can have failed attempts and, besides, slots without routes (the note says why)
+        parts = [f"{k} ×{v}" for k, v in list(s.reasons.items())[:3]] + ([s.note] if s.note else [])
+        reasons = "; ".join(parts) or "—"
         rows.append(
             (s.scenario, f"{s.clips}/{s.requested}", str(s.attempts), f"{100 * s.success_rate:.0f}%", reasons[:90])
         )

@@ -196,3 +196,40 @@ def test_corpus_manifest_is_the_one_json_in_splits(tmp_path):
     (tmp_path / "splits" / "mini.json").write_text("{}")
     with pytest.raises(ValueError, match="base.json, mini.json"):
         corpus_manifest(tmp_path)
+
+
+def test_summary_adds_a_types_slots_into_one_row_with_why_clips_are_missing(tmp_path):
+    from types import SimpleNamespace
+
+    from b2d_data.collection import run_log as rl
+    from b2d_data.collection.plan import CollectionPlan, RouteTask, ScenarioPlan
+    from b2d_data.collection.runner import summarise, summary_table
+
+    def task(route_id: str, scenario: str, group: str) -> RouteTask:
+        return RouteTask(SimpleNamespace(id=route_id), SimpleNamespace(name="Town100"), scenario, 0, group)
+
+    plan = CollectionPlan(
+        [
+            ScenarioPlan("Accident", 1, [task("100", "Accident", "#0"), task("101", "Accident", "#0")], group="#0"),
+            ScenarioPlan("Accident", 1, [], "no town holds a place for Accident", group="#1"),
+            ScenarioPlan("HardBreakRoute", 1, [task("300", "HardBreakRoute", "#2")], group="#2"),
+        ],
+        towns=[],
+        settings={},
+    )
+    attempt = rl.EVENT_ATTEMPT
+    records = [
+        {"event": attempt, "route_id": "100", "status": "failed", "reason": "collision"},
+        {"event": attempt, "route_id": "101", "status": "clip", "clip": "Accident_Town100_Route101_Weather1"},
+        {"event": attempt, "route_id": "300", "status": "failed", "reason": "TickRuntime"},
+    ]
+    rows = {s.scenario: s for s in summarise(plan, records, tmp_path, sensors=False)}
+    # Accident: slots #0 and #1 -> 2 wanted; #0 made its clip at the 2nd attempt, #1 has no routes
+    accident = rows["Accident"]
+    assert (accident.clips, accident.requested, accident.attempts, accident.failed) == (1, 2, 2, 1)
+    assert accident.reasons == {"collision": 1} and accident.note == "no town holds a place for Accident"
+    assert (rows["HardBreakRoute"].clips, rows["HardBreakRoute"].reasons) == (0, {"TickRuntime": 1})
+    table = summary_table(SimpleNamespace(scenarios=list(rows.values())))
+    assert "Accident        1/2" in table and "HardBreakRoute  0/1" in table
+    # the Accident row names both reasons: the failed attempt and the slot without a town
+    assert "collision ×1; no town holds a place for Accident" in table

@@ -44,6 +44,9 @@ logger = logging.getLogger(__name__)
 MANIFEST_VERSION = 1
 ARCHIVE_SUFFIX = ".tar.gz"
 Part = Literal["train", "val", "all"]
+PARTS: tuple[str, ...] = ("train", "val", "all")
+#: A corpus's own split manifest lives in ``<root>/splits/`` (``b2d-collect --preset`` writes it there).
+CORPUS_SPLITS_DIR = "splits"
 
 #: Behaviour families of the scenarios (clip prefixes) used to spread the mini split; each scenario is in one.
 SCENARIO_FAMILIES: dict[str, tuple[str, ...]] = {
@@ -204,6 +207,23 @@ def _entries_from_list(data: object, path: Path) -> tuple[SplitEntry, ...]:
         size = value.get("size")
         out.append(SplitEntry(clip_name_of(key), value.get("sha256"), int(size) if size is not None else None))
     return tuple(sorted(out))
+
+
+def corpus_manifest(root: str | Path) -> Path:
+    """The one split manifest in ``<root>/splits/`` (FileNotFoundError / ValueError say what is there instead)."""
+    folder = Path(root) / CORPUS_SPLITS_DIR
+    found = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    if not found:
+        raise FileNotFoundError(
+            f"{folder}: no split manifest (b2d-collect --preset writes one; or b2d-split generate {root} --split base "
+            f"--out {folder / 'base.json'})"
+        )
+    if len(found) > 1:
+        raise ValueError(
+            f"{folder} holds {len(found)} split manifests ({', '.join(p.name for p in found)}); pass split=<file> "
+            "and part='train' or 'val' to choose one"
+        )
+    return found[0]
 
 
 def load_file_list(path: str | Path) -> tuple[SplitEntry, ...]:

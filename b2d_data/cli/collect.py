@@ -6,6 +6,13 @@ Examples::
     b2d-collect --scenario HardBreakRoute --scenario ParkingExit --n 10 --workers 2 --out data/
     b2d-collect --routes bench2drive220.xml --scenario Accident --out b2d220/    # the shipped routes and towns
     b2d-collect --scenario Accident --n 50 --out data/ --resume        # after a crash or kill -9
+    b2d-collect --preset base --out base/                               # Bench2Drive-base's mix, 950/50 split
+    b2d-collect --preset base --n-scale 0.1 --out sample/               # a tenth of it
+
+``--preset mini|base|full`` copies the scenario types, weathers and (where b2d-data ships them and they hold the
+type) towns of Bench2Drive's official lists clip by clip, other towns replaced by the generated ones; ``uniform`` is
+v0.0.4's 44 types x 25 routes. It writes ``OUT/splits/<preset>.json`` (train/val as the official split), which
+``ClipDataset(OUT, split="train")`` reads.
 
 Clips are named ``<Scenario>_<Town>_Route<id>_Weather<w>``; only routes the expert completes without infraction
 (min-speed aside) become clips, unless ``--keep-failed`` (kept under ``OUT/failed/``). Every attempt is appended
@@ -36,6 +43,8 @@ if TYPE_CHECKING:  # the collection's modules load only when a collection runs (
 PROG = "b2d-collect"
 #: ``--params`` values (scenarios.param_ranges.PARAM_SETS, spelled out here to keep --help fast); the first is the default.
 PARAM_SET_NAMES = ("training", "bench2drive220")
+#: ``--preset`` values (collection.presets.PRESET_NAMES, spelled out here to keep --help fast).
+PRESET_NAMES = ("mini", "base", "full", "uniform")
 #: Exit status when the targets were not all met (usage errors exit with 2, like argparse).
 EXIT_SHORT = 1
 EXIT_USAGE = 2
@@ -64,6 +73,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     what.add_argument(
         "--n", type=int, default=None, help="clips per scenario (default 1; with --routes: every selected route)"
+    )
+    what.add_argument(
+        "--preset",
+        choices=PRESET_NAMES,
+        default=None,
+        help="a Bench2Drive-sized corpus with its train/val split: the official mini (10), base (1000) or full "
+        "(13638) lists' mix of scenarios, weathers and towns, or uniform (44 types x 25)",
+    )
+    what.add_argument(
+        "--n-scale",
+        type=float,
+        default=None,
+        metavar="S",
+        help="with --preset: scale its clips by S (0.1: a tenth, in the same proportions)",
     )
     what.add_argument("--out", type=Path, required=False, help="corpus folder (created if needed)")
     where = what.add_mutually_exclusive_group()
@@ -182,7 +205,8 @@ def _config(args: argparse.Namespace):
         lidar_azimuth_steps=args.lidar_azimuth_steps, format_version=FormatVersion(args.format_version),
         sensors=not args.no_sensors, encode_workers=encode_workers,
         attempts_per_clip=args.attempts_per_clip, ray_address=args.ray,
-        params=args.params or PARAM_SET_NAMES[0],
+        params=args.params or PARAM_SET_NAMES[0], preset=args.preset,
+        n_scale=args.n_scale if args.n_scale is not None else 1.0,
     )  # fmt: skip
 
 
@@ -199,6 +223,16 @@ def _check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
         parser.error("--encode-workers must be 0 or more")
     if args.params is not None and args.routes is not None:
         parser.error("--params sets the ranges of generated routes; --routes runs the file's own parameters")
+    if args.n_scale is not None and args.preset is None:
+        parser.error("--n-scale scales a --preset")
+    if args.preset is not None:
+        given = [flag for flag, value in (("--scenario", args.scenario), ("--n", args.n), ("--routes", args.routes),
+                                          ("--town", args.town), ("--xodr", args.xodr), ("--weather", args.weather))
+                 if value]  # fmt: skip
+        if given:
+            parser.error(f"--preset decides scenarios, counts, towns and weathers itself; drop {', '.join(given)}")
+        if args.n_scale is not None and not args.n_scale > 0:
+            parser.error(f"--n-scale must be positive, got {args.n_scale}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -304,6 +338,12 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         f"{summary.clips_this_run} {kind} from {summary.attempts_this_run} attempts{lost} in "
         f"{summary.wall_seconds:.1f} s{timing}; summary in {Path(summary.out) / 'summary.json'}"
     )
+    if summary.manifest is not None:
+        train, val = summary.manifest_clips
+        print(f"split manifest {summary.manifest}: {train} train + {val} val clips")
+    if summary.left_out:
+        what = ", ".join(f"{reason} x{n}" for reason, n in summary.left_out.items())
+        print(f"left out {sum(summary.left_out.values())} clip(s) of the official list: {what}")
     if summary.skipped_routes:
         print(f"skipped {len(summary.skipped_routes)} route(s) without a map: {', '.join(summary.skipped_routes[:10])}")
     if not summary.complete:

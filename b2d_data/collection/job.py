@@ -88,6 +88,10 @@ class CollectConfig:
     ray_address: str | None = None
     #: Parameter ranges of generated routes (``training`` or ``bench2drive220``, see scenarios.param_ranges).
     params: str = "training"
+    #: A Bench2Drive-sized corpus (``mini``, ``base``, ``full``, ``uniform``; collection.presets) instead of scenarios.
+    preset: str | None = None
+    #: The preset's clips scaled by this factor (collection.presets.scale).
+    n_scale: float = 1.0
 
     def rig(self) -> RigConfig:
         """The sensor rig of this collection (top-down camera at the surround cameras' size)."""

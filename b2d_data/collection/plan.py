@@ -3,7 +3,8 @@
 :func:`plan_collection` resolves the town (a generated preset, an OpenDRIVE file, or a folder of them for a route
 file), builds each scenario's route list (``placement.make_routes`` with an attempt budget, or the routes of a
 route XML file) and derives every route's seed from ``--seed`` and the route id, so that the same seed gives the
-same routes, the same runs and the same annotations.
+same routes, the same runs and the same annotations. A ``--preset`` (a Bench2Drive-sized corpus) is planned by
+:mod:`~b2d_data.collection.preset_plan`: one target per clip it copies, over several types and towns.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import zlib
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from b2d_data.format.scenario_types import BY_CLIP_PREFIX, BY_XML_TYPE, NO_SCENA
 from b2d_data.format.weather import UnknownWeatherError, preset
 from b2d_data.scenarios.route_xml import Route
 
+if TYPE_CHECKING:
+    from b2d_data.collection.preset_plan import PresetPlan
+
 log = logging.getLogger(__name__)
 
 #: Where a generated collection saves its planned routes (one route file per scenario).
@@ -46,7 +50,7 @@ PLANNED_ROUTES_DIR = "routes"
 #: The settings a resumed collection must share with the one it continues.
 #: Settings that change what a route produces; a resume with other values would mix incompatible clips.
 FIXED_SETTINGS = ("seed", "town", "xodr", "routes_file", "weathers", "width", "height", "lidar_azimuth_steps",
-                   "format_version", "sensors", "params")  # fmt: skip
+                   "format_version", "sensors", "params", "preset", "n_scale")  # fmt: skip
 
 
 class CollectError(Exception):
@@ -55,23 +59,37 @@ class CollectError(Exception):
 
 @dataclass(frozen=True)
 class RouteTask:
-    """One route to attempt: the route, its (file-backed) town, its scenario group and its seed."""
+    """One route to attempt: the route, its (file-backed) town, its scenario, its seed and the group whose target
+    it counts towards (empty: its scenario's)."""
 
     route: Route
     town: TownSource
     scenario: str
     seed: int
+    group: str = ""
+
+    @property
+    def key(self) -> str:
+        """The group this attempt counts towards: ``group``, else the scenario."""
+        return self.group or self.scenario
 
 
 @dataclass
 class ScenarioPlan:
-    """One scenario's routes in attempt order and its clip target."""
+    """One target: a scenario's routes in attempt order and its clip target. A preset has one per clip it copies
+    (``group`` names it); the summary adds up the plans of one scenario."""
 
     scenario: str
     target: int
     tasks: list[RouteTask] = field(default_factory=list)
     #: Why the scenario has no routes (placement failed), if it has none.
     error: str | None = None
+    group: str = ""
+
+    @property
+    def key(self) -> str:
+        """The name the runner keeps this target under: ``group``, else the scenario."""
+        return self.group or self.scenario
 
 
 @dataclass
@@ -82,6 +100,8 @@ class CollectionPlan:
     towns: list[TownSource]
     settings: dict[str, Any]
     skipped: list[str] = field(default_factory=list)
+    #: A preset's slots and their routes (None for other collections).
+    preset: PresetPlan | None = None
 
 
 def route_seed(seed: int, route_id: str) -> int:
@@ -282,8 +302,26 @@ def _town_for(config: CollectConfig, town: str) -> TownSource | None:
         raise CollectError(str(exc)) from None
 
 
+def _check_preset(config: CollectConfig) -> None:
+    from b2d_data.collection.presets import PRESET_NAMES, Composition, PresetError, scale
+
+    if config.preset not in PRESET_NAMES:
+        raise CollectError(f"unknown preset {config.preset!r}; presets: {', '.join(PRESET_NAMES)}")
+    given = [flag for flag, value in (("--scenario", config.scenarios), ("--routes", config.routes_file),
+                                      ("--town", config.town), ("--xodr", config.xodr), ("--weather", config.weathers))
+             if value]  # fmt: skip
+    if given:
+        raise CollectError(f"--preset decides scenarios, towns and weathers itself; drop {', '.join(given)}")
+    try:
+        scale(Composition(config.preset, []), config.n_scale)  # the scaling rule's own check of the factor
+    except PresetError as exc:
+        raise CollectError(str(exc)) from None
+
+
 def validate_config(config: CollectConfig) -> None:
     """Check the options before anything touches the disk (raises :class:`CollectError` naming the problem)."""
+    if config.preset is not None:
+        _check_preset(config)
     if config.n is not None and config.n < 1:
         raise CollectError(f"--n must be at least 1, got {config.n}")
     if config.workers < 1:
@@ -307,6 +345,8 @@ def validate_config(config: CollectConfig) -> None:
             raise CollectError(str(exc)) from None
     if config.xodr is not None and config.xodr.is_dir() and config.routes_file is None:
         raise CollectError(f"--xodr {config.xodr} is a folder; without --routes give one OpenDRIVE file")
+    if config.preset is not None:
+        return  # _check_preset refused scenarios and route files
     if config.routes_file is not None:
         for name in config.scenarios:
             resolve_scenario(name)
@@ -321,6 +361,10 @@ def validate_config(config: CollectConfig) -> None:
 def plan_collection(config: CollectConfig) -> CollectionPlan:
     """Resolve towns and scenarios and list every route to attempt, in order (raises :class:`CollectError`)."""
     validate_config(config)
+    if config.preset is not None:
+        from b2d_data.collection.preset_plan import preset_plan
+
+        return preset_plan(config)
     if config.routes_file is not None:
         return _file_plan(config)
     if config.n is None:

@@ -114,6 +114,11 @@ class CollectSummary:
     lost_this_run: int = 0
     #: Set when a full disk stopped the run: the space the missing clips need.
     disk_full: SpaceNeeded | None = None
+    #: A preset's split manifest and its clips per part (train, val); None for other collections.
+    manifest: str | None = None
+    manifest_clips: tuple[int, int] = (0, 0)
+    #: A preset's official-list entries that have no clip slot, by reason (unknown scenario types ...).
+    left_out: dict[str, int] = field(default_factory=dict)
 
     @property
     def complete(self) -> bool:
@@ -135,6 +140,8 @@ class CollectSummary:
             "wall_seconds": round(self.wall_seconds, 3),
             "seconds_per_clip": None if self.seconds_per_clip is None else round(self.seconds_per_clip, 3),
             "skipped_routes": self.skipped_routes,
+            **({"manifest": self.manifest, "manifest_clips": list(self.manifest_clips), "left_out": self.left_out}
+               if self.manifest is not None else {}),
             "scenarios": [s.to_dict() for s in self.scenarios],
         }  # fmt: skip
 
@@ -184,15 +191,23 @@ def _is_clip(record: dict[str, Any], out: Path, sensors: bool) -> bool:
 
 def summarise(plan: CollectionPlan, records: list[dict[str, Any]], out: Path, sensors: bool) -> list[ScenarioSummary]:
     """Per-scenario attempts, clips, failures and their main reasons, and the attempts lost with their worker,
-    from the run log's finished attempts."""
-    finals = rl.final_records(records)
-    out_list = []
+    from the run log's finished attempts (the plans of one scenario, e.g. a preset's one per copied clip, add up to
+    one row)."""
+    by_route: dict[str, list[dict[str, Any]]] = {}
+    for r in rl.final_records(records):
+        by_route.setdefault(str(r.get("route_id")), []).append(r)
+    rows: dict[str, ScenarioSummary] = {}
+    reasons: dict[str, Counter[str]] = {}
     for sp in plan.scenarios:
-        ids = {str(t.route.id) for t in sp.tasks}
-        mine = [r for r in finals if str(r.get("route_id")) in ids]
-        s = ScenarioSummary(sp.scenario, sp.target, routes_planned=len(sp.tasks), note=sp.error or "")
-        reasons: Counter[str] = Counter()
-        for r in mine:
+        s = rows.get(sp.scenario)
+        if s is None:
+            s = rows[sp.scenario] = ScenarioSummary(sp.scenario, 0)
+            reasons[sp.scenario] = Counter()
+        s.requested += sp.target
+        s.routes_planned += len(sp.tasks)
+        if sp.error and sp.error not in s.note:
+            s.note = f"{s.note}; {sp.error}" if s.note else sp.error
+        for r in (r for t in sp.tasks for r in by_route.get(str(t.route.id), ())):
             if is_lost(r):
                 s.lost += 1
                 continue
@@ -201,13 +216,13 @@ def summarise(plan: CollectionPlan, records: list[dict[str, Any]], out: Path, se
                 s.clips += 1
             elif r.get("status") == STATUS_ERROR:
                 s.errors += 1
-                reasons[f"error: {str(r.get('reason', ''))[:80]}"] += 1
+                reasons[sp.scenario][f"error: {str(r.get('reason', ''))[:80]}"] += 1
             else:
                 s.failed += 1
-                reasons[str(r.get("reason") or r.get("route_status") or "failed")] += 1
-        s.reasons = dict(reasons.most_common())
-        out_list.append(s)
-    return out_list
+                reasons[sp.scenario][str(r.get("reason") or r.get("route_status") or "failed")] += 1
+    for scenario, s in rows.items():
+        s.reasons = dict(reasons[scenario].most_common())
+    return list(rows.values())
 
 
 def _write_summary(out: Path, summary: CollectSummary) -> None:
@@ -257,6 +272,10 @@ def collect(config: CollectConfig, progress: Callable[[Progress], None] | None =
             session.lost,
             _space_needed(out, records, session, scenarios, config.sensors) if session.disk_full else None,
         )
+        if plan.preset is not None:
+            summary.left_out = plan.preset.left_out()
+            if config.sensors:
+                _write_preset_manifest(out, plan, records, config, summary)
         _write_summary(out, summary)
         return summary
 
@@ -270,6 +289,19 @@ def _space_needed(
     stopped = [r for r in finals if r.get("note") == DISK_FULL]
     missing = sum(max(s.requested - s.clips, 0) for s in scenarios)
     return space_needed(out, clip_dirs, stopped, missing, session.state.typical_frames())
+
+
+def _write_preset_manifest(
+    out: Path, plan: CollectionPlan, records: list[dict[str, Any]], config: CollectConfig, summary: CollectSummary
+) -> None:
+    """The preset's split manifest of the clips made so far (rewritten by every session, so a resume completes it)."""
+    from b2d_data.collection.preset_plan import SPLITS_DIR, write_manifest
+
+    assert plan.preset is not None
+    made = {str(r.get("route_id")): str(r.get("clip")) for r in rl.final_records(records) if _is_clip(r, out, True)}
+    manifest = write_manifest(out, plan.preset, made, config)
+    summary.manifest = str(out / SPLITS_DIR / f"{manifest.name}.json")
+    summary.manifest_clips = (len(manifest.train), len(manifest.val))
 
 
 def _resume(
@@ -305,14 +337,18 @@ class _Session:
         finals = rl.final_records(records)
         # A route whose attempts all ended in an error (a crash, not a verdict on the route) is tried again.
         attempted = {str(r.get("route_id")) for r in finals if r.get("status") != STATUS_ERROR}
-        self.pending = {sp.scenario: deque(t for t in sp.tasks if str(t.route.id) not in attempted)
+        self.pending = {sp.key: deque(t for t in sp.tasks if str(t.route.id) not in attempted)
                         for sp in plan.scenarios}  # fmt: skip
-        ids_of = {sp.scenario: {str(t.route.id) for t in sp.tasks} for sp in plan.scenarios}
-        self.done = {sp.scenario: sum(1 for r in finals if str(r.get("route_id")) in ids_of[sp.scenario]
-                                      and _is_clip(r, out, config.sensors)) for sp in plan.scenarios}  # fmt: skip
-        self.attempts_before = sum(1 for r in finals if any(str(r.get("route_id")) in ids for ids in ids_of.values()))
-        self.target = {sp.scenario: sp.target for sp in plan.scenarios}
-        self.in_flight = {sp.scenario: 0 for sp in plan.scenarios}
+        # route id -> its target's key: one pass over the log however many targets (a preset has one per clip)
+        key_of = {str(t.route.id): sp.key for sp in plan.scenarios for t in sp.tasks}
+        self.done = {sp.key: 0 for sp in plan.scenarios}
+        for r in finals:
+            key = key_of.get(str(r.get("route_id")))
+            if key is not None and _is_clip(r, out, config.sensors):
+                self.done[key] += 1
+        self.attempts_before = sum(1 for r in finals if str(r.get("route_id")) in key_of)
+        self.target = {sp.key: sp.target for sp in plan.scenarios}
+        self.in_flight = {sp.key: 0 for sp in plan.scenarios}
         self.requested = sum(self.target.values())
         self.retries: Counter[str] = Counter()
         #: Attempts of this run lost with their worker or to a full disk (not counted as attempts).
@@ -320,7 +356,7 @@ class _Session:
         #: Set by the first attempt that found the disk full: no route starts after it.
         self.disk_full = False
         self.state = ProgressState(self.requested, self._clips(), self.attempts_before, clock=clock)
-        mine = set().union(*ids_of.values()) if ids_of else set()
+        mine = set(key_of)
         self.state.finished_frames = [
             frames_of(int(r.get("ticks") or 0), int(r.get("frames") or 0))
             for r in finals
@@ -332,7 +368,8 @@ class _Session:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
 
     def _next_task(self, order: deque[str]) -> RouteTask | None:
-        """Round robin over scenarios that still need clips and have routes left (none once the disk is full)."""
+        """Round robin over the targets (scenarios, a preset's clips) that still need clips and have routes left (none
+        once the disk is full)."""
         if self.disk_full:
             return None
         for _ in range(len(order)):
@@ -384,7 +421,7 @@ class _Session:
                 if backend.running() == 0:
                     break
                 for task, result in backend.wait(timeout=REFRESH_SECONDS):
-                    self.in_flight[task.scenario] -= 1
+                    self.in_flight[task.key] -= 1
                     if result.note in LOST_NOTES:
                         self.lost += 1
                     else:
@@ -394,7 +431,7 @@ class _Session:
                         log.warning("the disk of %s is full: no new route starts (%d still running)", self.out,
                                     backend.running())  # fmt: skip
                     if result.status == STATUS_CLIP:
-                        self.done[task.scenario] += 1
+                        self.done[task.key] += 1
                         clips += 1
                     record = result.to_record()
                     self.run_log.append(record)
@@ -424,7 +461,7 @@ class _Session:
         if result.note != WORKER_LOST or self.retries[route_id] >= LOST_WORKER_RETRIES:
             return
         self.retries[route_id] += 1
-        self.pending[task.scenario].appendleft(task)
+        self.pending[task.key].appendleft(task)
         log.warning("route %s: its worker was lost (%s); running it again", route_id, result.reason)
 
     def _launch(self, backend: Backend, task: RouteTask) -> None:
@@ -433,7 +470,7 @@ class _Session:
                  "time": datetime.now(timezone.utc).isoformat(timespec="milliseconds")}  # fmt: skip
         self.run_log.append(start)
         self.records.append(start)
-        self.in_flight[task.scenario] += 1
+        self.in_flight[task.key] += 1
         self.state.route_started(str(task.route.id), task.scenario)
         backend.submit(task)
 
@@ -479,7 +516,9 @@ def summary_table(summary: CollectSummary) -> str:
     head = ("scenario", "clips", "attempts", "lost", "success", "main failure reasons")
     rows = []
     for s in summary.scenarios:
-        reasons = "; ".join(f"{k} ×{v}" for k, v in list(s.reasons.items())[:3]) or ("—" if not s.note else s.note)
+        # a preset's type can have failed attempts and, besides, slots without routes (the note says why)
+        parts = [f"{k} ×{v}" for k, v in list(s.reasons.items())[:3]] + ([s.note] if s.note else [])
+        reasons = "; ".join(parts) or "—"
         rows.append((s.scenario, f"{s.clips}/{s.requested}", str(s.attempts), str(s.lost),
                      f"{100 * s.success_rate:.0f}%", reasons[:90]))  # fmt: skip
     widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]

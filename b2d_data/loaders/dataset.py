@@ -46,7 +46,7 @@ from b2d_data.loaders.sample import (
     reference_world2ego,
     waypoint_fields,
 )
-from b2d_data.splits import SplitManifest
+from b2d_data.splits import PARTS, SplitManifest, corpus_manifest
 
 logger = logging.getLogger(__name__)
 
@@ -80,7 +80,8 @@ class ClipDataset(Dataset):
     """Per-frame samples from a corpus root (indexed by ``b2d-index``) or from one clip folder.
 
     Filters: ``split`` (a :class:`SplitManifest` or a manifest / official list JSON) with ``part``
-    (``train``, ``val``, ``all``), ``scenarios`` (clip prefixes or XML types), ``towns``, ``weathers`` (ids), ``clips``
+    (``train``, ``val``, ``all``), or ``split="train"`` / ``"val"`` for that part of the corpus's own manifest
+    (the one JSON in ``<root>/splits/``, as ``b2d-collect --preset`` writes), ``scenarios`` (clip prefixes or XML types), ``towns``, ``weathers`` (ids), ``clips``
     (names); ``frame_stride`` keeps every n-th frame. What a sample holds is set by :class:`SampleOptions`
     (pass ``options=`` or its fields as keywords, e.g. ``cameras=("front",), radar=True``).
 
@@ -212,6 +213,11 @@ class ClipDataset(Dataset):
         clips: Iterable[str] | None,
     ) -> list[int]:
         wanted: set[str] | None = None
+        if isinstance(split, str) and split in PARTS:
+            # split="train": that part of the corpus's own manifest (<root>/splits/, written by b2d-collect --preset)
+            if part not in ("all", split):
+                raise ValueError(f"split={split!r} selects a part already; part={part!r} contradicts it")
+            split, part = corpus_manifest(self.root), split
         if split is not None:
             manifest = split if isinstance(split, SplitManifest) else SplitManifest.load(split)
             wanted = set(manifest.clips(part))  # type: ignore[arg-type]

@@ -561,12 +561,8 @@ class Renderer:
         # read by every camera of it. llvmpipe draws a quarter of the texels: its shadow pass costs CPU.
         self.shadows = shadows
         self.shadow_size = shadow_size or (2048 if self.hardware else 1024)
-        self._shadow_map = self.ctx.depth_texture((self.shadow_size, self.shadow_size))
-        self._shadow_map.compare_func = "<="
-        self._shadow_map.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self._shadow_map.repeat_x = False
-        self._shadow_map.repeat_y = False
-        self._shadow_fbo = self.ctx.framebuffer(depth_attachment=self._shadow_map)
+        self._shadow_maps: dict[int, tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
+        self._shadow_map: moderngl.Texture | None = None
         self._sun_view: SunView | None = None
         self._shadow_key: tuple | None = None
         self._scene_version = 0  # counts static and dynamic uploads: a new one makes the shadow map stale
@@ -576,7 +572,7 @@ class Renderer:
 
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
-        """A scene program ("scene", material, night, wet, shadow, soft, airlight, falloff, light count), the sky
+        """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam), the sky
         program ("sky", clouds, falloff, airlight) or the shadow-map program ("shadow",), compiled once."""
         prog = self._programs.get(key)
         if prog is None:
@@ -586,8 +582,8 @@ class Renderer:
             elif key[0] == "shadow":
                 prog = self.ctx.program(vertex_shader=shaders.SHADOW_VERTEX, fragment_shader=shaders.SHADOW_FRAGMENT)
             else:
-                _, material, night, wet, shadow, soft, airlight, falloff, lights = key
-                variant = {"shadow": shadow, "soft": soft, "airlight": airlight, "falloff": falloff, "lights": lights}
+                _, material, night, wet, shadow, airlight, falloff, lights, own = key
+                variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own}
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet, **variant),
                     fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed, **variant),
@@ -717,9 +713,9 @@ class Renderer:
             # Street lamps light the fog around them the more, the denser it is (its share within 20 m).
             "u_lamp_glow": float(1.0 - math.exp(-20.0 * light.fog_density)),
             "u_shadow_matrix": sun.texture if sun is not None else np.eye(4),
-            "u_shadow_offset": float(sun.texel) if sun is not None else 0.0,
-            "u_shadow_params": (float(light.shadow_strength),
-                                float(light.shadow_softness / (2.0 * sun.half_extent[0])) if sun is not None else 0.0),
+            # Along the normal by up to a texel (no more than 15 cm: a coarse map leans on the polygon offset).
+            "u_shadow_offset": min(float(sun.texel), 0.15) if sun is not None else 0.0,
+            "u_shadow_strength": float(light.shadow_strength),
             "u_sky_depth": shaders.SKY_DEPTH,
             "u_sky_tag": shaders.SKY_TAG,
         }  # fmt: skip
@@ -727,19 +723,38 @@ class Renderer:
     def _wants_shadows(self, light: Lighting) -> bool:
         return self.shadows and light.shadow_strength > 0.0
 
+    def _shadow_target(self, size: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        """The depth texture (compared and filtered: 2×2 PCF in hardware) and framebuffer of a shadow map size."""
+        target = self._shadow_maps.get(size)
+        if target is None:
+            texture = self.ctx.depth_texture((size, size))
+            texture.compare_func = "<="
+            texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            texture.repeat_x = False
+            texture.repeat_y = False
+            target = self._shadow_maps[size] = (texture, self.ctx.framebuffer(depth_attachment=texture))
+        return target
+
     def _update_shadow_map(self, light: Lighting, centre: np.ndarray) -> None:
-        """Draw the sun's shadow map around ``centre`` unless the one drawn last still holds (same scene and sun)."""
-        sun = sun_view(light.sun_dir, centre, self.SHADOW_RADIUS, self.shadow_size)
-        key = (self._scene_version, tuple(sun.viewproj.ravel().tolist()))
-        self._sun_view = sun
+        """Draw the sun's shadow map around ``centre`` unless the one drawn last still holds (same scene and sun).
+
+        Under partial overcast the map is four times coarser: its filtered texels blur the shadow's edge over about
+        the penumbra (:attr:`Lighting.shadow_softness`) at the cost of one lookup, where taps a penumbra apart would
+        cost four on a software rasteriser.
+        """
+        size = self.shadow_size if light.shadow_softness <= 0.4 else max(128, self.shadow_size // 4)
+        sun = sun_view(light.sun_dir, centre, self.SHADOW_RADIUS, size)
+        key = (self._scene_version, size, tuple(sun.viewproj.ravel().tolist()))
+        texture, fbo = self._shadow_target(size)
+        self._sun_view, self._shadow_map = sun, texture
         if key == self._shadow_key:
             return
         self._shadow_key = key
         prog = self._program(("shadow",))
         _set(prog, "u_sun_viewproj", sun.viewproj)
-        self._shadow_fbo.use()
-        self._shadow_fbo.viewport = (0, 0, self.shadow_size, self.shadow_size)
-        self._shadow_fbo.clear(depth=1.0)
+        fbo.use()
+        fbo.viewport = (0, 0, size, size)
+        fbo.clear(depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         self.ctx.depth_func = "<"
@@ -851,17 +866,18 @@ class Renderer:
         # The night programs: street lamps (night) or vehicle beams (twilight, lamps lit) to light.
         night = light.night > 0.0 or (light.beams > 0.0 and lights is not None and len(lights) > 0)
         wet = light.wetness > 0.0 or light.puddles > 0.0
-        shadow = self._wants_shadows(light) and self._sun_view is not None
+        shadow = self._wants_shadows(light) and self._shadow_map is not None
         if shadow:
+            assert self._shadow_map is not None
             self._shadow_map.use(self.SHADOW_UNIT)
         # Only the beams that can light what this camera sees, and only at night.
         seen = beams_in_view(lights, viewproj) if night and lights is not None else SpotLights.empty()
         beams = self._light_uniforms(seen)
-        # Overcast skies blur the shadows (four taps); the ego's low beam lights the fog when there is fog to light.
+        # The ego's low beam lights the fog when there is fog to light.
         airlight = night and light.fog_density > 0.005 and seen.own
         falloff = light.fog_falloff > 0.0
-        variant = (shadow, shadow and light.shadow_softness > 0.4, airlight, falloff,
-                   shaders.light_count(len(seen)) if night else 0)  # fmt: skip
+        variant = (shadow, airlight, falloff,
+                   shaders.light_count(len(seen)) if night else 0, night and seen.own)  # fmt: skip
         per_camera = {
             "u_viewproj": viewproj,
             "u_cam_pos": tuple(map(float, pose[:3, 3])),

@@ -89,9 +89,10 @@ vec3 airlight(vec3 cam, vec3 p) {
 # Low beams (vehicle_lights.SpotLights): position, unit direction, RGB strength. A beam lights a cone about ±35°
 # wide, cut off just above the lamp's horizon as a dipped beam is aimed (a tenth spills above it), and falls off as
 # 1 / (1 + d²/R²): the inverse square law away from the lamp, capped near it. ``surface``: the light on a face with
-# normal n (its facing term), else on the fog. NLIGHTS is a compile-time count (the renderer pads the frame's lights
-# to the next of a few sizes with dark ones), so that the loop unrolls into straight uniform reads: llvmpipe runs a
-# loop over a uniform count, and indexes uniform arrays by it, several times slower.
+# normal n (its facing term), else on the fog. The cameras' own vehicle's beam (OWN: light 0) is lit per pixel, the
+# other vehicles' beams per vertex: each light costs every pixel of a software rasteriser some 6 ns, and the other
+# beams fall on the road (2 m strips) from afar. NLIGHTS is a compile-time count (the renderer pads the lights to
+# the next of a few sizes with dark ones), so that the loop unrolls into straight uniform reads.
 _SPOTS = """
 uniform vec4 u_light_pos[MAX_LIGHTS];
 uniform vec4 u_light_dir[MAX_LIGHTS];
@@ -130,10 +131,13 @@ uniform vec3 u_sky_zenith;
 uniform vec3 u_sky_horizon;
 uniform float u_wetness;
 uniform float u_night;
-#if AIRLIGHT
+#if NIGHT
 uniform float u_beams;
-FOG_FUNCTIONS
 SPOT_FUNCTIONS
+out vec3 v_beams;
+#endif
+#if AIRLIGHT
+FOG_FUNCTIONS
 AIRLIGHT_FUNCTION
 out vec3 v_air;
 #endif
@@ -233,6 +237,14 @@ void main() {
 #if NIGHT
     v_nrm = n;
     v_albedo = albedo;
+    vec3 others = vec3(0.0);
+#if MAT != 2
+    // Not on facades: a wall is two triangles, whose corners cannot carry a beam's pool.
+    for (int i = OWN; i < NLIGHTS; ++i) {
+        others += spot_light(i, p, n, true);
+    }
+#endif
+    v_beams = others * u_beams;
 #endif
 #if AIRLIGHT
     v_air = airlight(u_cam_pos, p);
@@ -255,7 +267,7 @@ uniform vec3 u_fog_color;
 FOG_FUNCTIONS
 #if SHADOW
 uniform sampler2DShadow u_shadow_map;
-uniform vec2 u_shadow_params;  // strength, penumbra radius in shadow-map texture units
+uniform float u_shadow_strength;
 in vec3 v_shadow;
 in vec3 v_sun;
 #endif
@@ -268,6 +280,7 @@ LAMP_CONSTANTS
 SPOT_FUNCTIONS
 in vec3 v_nrm;
 in vec3 v_albedo;
+in vec3 v_beams;
 #endif
 #if AIRLIGHT
 in vec3 v_air;
@@ -297,20 +310,13 @@ layout(location = 3) out uint f_tag;
 
 #if SHADOW
 float sun_shadow() {
-    // Share of the sun's light this fragment loses: 0 in the sun, u_shadow_params.x in full shadow. The
-    // comparison sampler filters 2×2 texels (a hard but anti-aliased edge); overcast skies (SOFT) average four
-    // taps a penumbra apart. Beyond the map's edge every fragment is sunlit.
-    vec3 s = vec3(v_shadow.xy, min(v_shadow.z, 1.0));
-#if SOFT
-    float r = u_shadow_params.y;
-    float lit = 0.25 * (texture(u_shadow_map, s + vec3(-r, -0.4 * r, 0.0)) + texture(u_shadow_map, s + vec3(r, 0.4 * r, 0.0))
-                        + texture(u_shadow_map, s + vec3(-0.4 * r, r, 0.0)) + texture(u_shadow_map, s + vec3(0.4 * r, -r, 0.0)));
-#else
-    float lit = texture(u_shadow_map, s);
-#endif
+    // Share of the sun's light this fragment loses: 0 in the sun, u_shadow_strength in full shadow. The
+    // comparison sampler filters 2×2 texels: an anti-aliased edge, blurred over a penumbra by the coarser map of
+    // an overcast sky. Beyond the map's edge every fragment is sunlit.
+    float lit = texture(u_shadow_map, vec3(v_shadow.xy, min(v_shadow.z, 1.0)));
     vec2 edge = abs(v_shadow.xy - 0.5) * 2.0;
     lit = mix(lit, 1.0, smoothstep(0.9, 1.0, max(edge.x, edge.y)));
-    return (1.0 - lit) * u_shadow_params.x;
+    return (1.0 - lit) * u_shadow_strength;
 }
 #endif
 
@@ -321,11 +327,11 @@ float lamp_pool(vec3 p) {
 }
 
 vec3 beams(vec3 p, vec3 n) {
-    vec3 light = vec3(0.0);
-    for (int i = 0; i < NLIGHTS; ++i) {
-        light += spot_light(i, p, n, true);
-    }
-    return light;
+#if OWN
+    return v_beams + spot_light(0, p, n, true) * u_beams;
+#else
+    return v_beams;
+#endif
 }
 #endif
 
@@ -371,7 +377,7 @@ void main() {
     vec3 fog_color = u_fog_color;
 #if NIGHT
     float pool = lamp_pool(v_pos);
-    col += albedo * (LAMP_LIGHT * pool * u_night + beams(v_pos, normalize(v_nrm)) * u_beams);
+    col += albedo * (LAMP_LIGHT * pool * u_night + beams(v_pos, normalize(v_nrm)));
 #if MAT == 1 && WET
     // A wet road mirrors the lamp above a pool: a glossy sheen where the dry road only scatters.
     col += LAMP_LIGHT * pool * u_night * 0.35 * water;
@@ -403,12 +409,13 @@ def light_count(n: int) -> int:
     return next(c for c in LIGHT_COUNTS if c >= min(n, MAX_LIGHTS))
 
 
-def _header(material: int, night: bool, wet: bool, shadow: bool = False, soft: bool = False, airlight: bool = False,
-            falloff: bool = False, lights: int = 0) -> str:  # fmt: skip
+def _header(material: int, night: bool, wet: bool, shadow: bool = False, airlight: bool = False, falloff: bool = False,
+            lights: int = 0, own: bool = False) -> str:  # fmt: skip
     return (
         f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
-        f"#define SHADOW {int(shadow)}\n#define SOFT {int(soft)}\n#define AIRLIGHT {int(airlight)}\n"
-        f"#define FALLOFF {int(falloff)}\n#define NLIGHTS {int(lights)}\n#define MAX_LIGHTS {MAX_LIGHTS}\n"
+        f"#define SHADOW {int(shadow)}\n#define AIRLIGHT {int(airlight)}\n"
+        f"#define FALLOFF {int(falloff)}\n#define NLIGHTS {int(lights)}\n#define OWN {int(own)}\n"
+        f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
         f"#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
     )
 
@@ -419,10 +426,10 @@ def _functions(source: str) -> str:
             .replace("AIRLIGHT_FUNCTION", _AIRLIGHT))  # fmt: skip
 
 
-def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, soft: bool = False,
-                 airlight: bool = False, falloff: bool = False, lights: int = 0) -> str:  # fmt: skip
+def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, airlight: bool = False,
+                 falloff: bool = False, lights: int = 0, own: bool = False) -> str:  # fmt: skip
     """The scene vertex shader specialised for one material and weather variant."""
-    return _header(material, night, wet, shadow, soft, airlight, falloff, lights) + _functions(_SCENE_VERTEX)
+    return _header(material, night, wet, shadow, airlight, falloff, lights, own) + _functions(_SCENE_VERTEX)
 
 
 # The depth target: float metres, or the uint8 the depth PNG stores. OpenCV's float → uint8 conversion is
@@ -471,13 +478,13 @@ def _fragment(source: str, depth8: bool, packed: bool = False) -> str:
 
 
 def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False, *,
-                   shadow: bool = False, soft: bool = False, airlight: bool = False, falloff: bool = False,
-                   lights: int = 0) -> str:  # fmt: skip
+                   shadow: bool = False, airlight: bool = False, falloff: bool = False, lights: int = 0,
+                   own: bool = False) -> str:  # fmt: skip
     """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float;
-    ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``/``soft``: the sun's shadow map, hard or
-    blurred; ``airlight``: the low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the
-    number of low beams, one of :data:`LIGHT_COUNTS`)."""
-    header = _header(material, night, wet, shadow, soft, airlight, falloff, lights)
+    ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``: the sun's shadow map; ``airlight``: the
+    low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the number of low beams, one of
+    :data:`LIGHT_COUNTS`; ``own``: light 0 is the cameras' own beam, lit per pixel)."""
+    header = _header(material, night, wet, shadow, airlight, falloff, lights, own)
     return header + _fragment(_functions(_SCENE_FRAGMENT), depth8, packed)
 
 

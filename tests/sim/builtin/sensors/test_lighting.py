@@ -17,6 +17,7 @@ from b2d_data.sim.api import RigConfig
 from b2d_data.sim.builtin.sensors.lighting import Lighting, fog_amount
 from b2d_data.sim.builtin.sensors.map_mesh import build_static_scene
 from b2d_data.sim.builtin.sensors.renderer import CameraView, sun_view
+from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh
 from b2d_data.sim.builtin.sensors.suite import SensorSuite
 from b2d_data.sim.builtin.sensors.synthetic import actor_state, box_prop, crossroads_layout, flat_scene, snapshot_of
 from b2d_data.sim.builtin.sensors.vehicle_lights import (
@@ -46,6 +47,8 @@ def _centre_view(target: tuple[float, float, float], height: float = 1.6) -> Cam
 
 
 def _render(suite, view: CameraView, weather: WeatherParameters, lights: SpotLights | None = None):
+    """The view over the bare ground (no actors left from another test's capture)."""
+    suite.renderer.set_dynamic(TriangleMesh.empty())
     return suite.renderer.render([view], Lighting.from_weather(weather), lights)[0]
 
 
@@ -133,8 +136,9 @@ def _shadow_scene(suite, weather: WeatherParameters, shadows: bool):
 def _umbra(frame, suite) -> np.ndarray:
     """Ground pixels of the 4 m box's shadow well inside its edges (sun from +y at 45°: the shadow is y −3…−7).
 
-    An overcast sky's penumbra (0.84 m across the sun's rays, 1.19 m along them on the ground at 45°, plus a
-    shadow-map texel) stays outside x 13.4…16.6, y −5.5…−4.5.
+    An overcast sky's penumbra (its shadow map is four times coarser on llvmpipe: 256 texels over 140 m, 0.55 m
+    across the sun's rays and 0.77 m along them on the ground at 45°, blurred over two by the 2×2 filter) stays
+    outside x 13.4…16.6, y −5.5…−4.5.
     """
     from b2d_data.format.rig import CAMERA_BY_FOLDER
 
@@ -197,30 +201,46 @@ def test_the_sun_view_maps_the_centre_to_the_middle_of_the_shadow_map():
 
 
 # ------------------------------------------------------------------------------------------------------- low beams
-def _beam(blocked: bool = False) -> SpotLights:
-    """One white beam (strength 1) from (0, 0, 1) along +x; optionally a vehicle 5 m out covering the x axis."""
+def _beam(own: bool, blocked: bool = False) -> SpotLights:
+    """One white beam (strength 1) from (0, 0, 1) along +x; optionally a vehicle 5 m out covering the x axis.
+
+    ``own``: the cameras' own vehicle's beam, lit per pixel; else another vehicle's, lit per vertex.
+    """
     blocker = np.array([[1.0, 0.0, 0.0, math.cos(0.2)]]) if blocked else np.array([[0.0, 0.0, 1.0, 1.0]])
-    return SpotLights(np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]), np.ones((1, 3)), False, blocker,
+    return SpotLights(np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]), np.ones((1, 3)), own, blocker,
                       np.array([5.0 if blocked else NO_BLOCKER]))  # fmt: skip
 
 
-def test_a_low_beam_lights_the_ground_ahead_by_the_inverse_square_law(ground):
-    view = _centre_view((10.0, 0.0, 0.0))
-    noon = WeatherParameters(sun_altitude_angle=90.0)
+#: A pixel's light at night (ambient facing up, (0.03, 0.035, 0.05), plus a beam) over its light at noon (ambient
+#: (0.399, 0.42, 0.4536) plus the sun overhead 0.78 · (1, 0.97, 0.9)): the albedo cancels.
+_NOON_LIGHT = np.array([1.179, 1.1766, 1.1556])
+_NIGHT_AMBIENT = np.array([0.03, 0.035, 0.05])
+
+
+def test_the_own_low_beam_lights_each_pixel_by_the_inverse_square_law(ground):
+    # (13, 0, 0) lies inside a ground triangle (the grid's vertices are 10 m apart): only a per-pixel beam gets it.
+    view = _centre_view((13.0, 0.0, 0.0))
+    day = _render(ground, view, WeatherParameters(sun_altitude_angle=90.0)).rgb[45, 80].astype(float)
     night = WeatherParameters(sun_altitude_angle=-90.0)
-    day = _render(ground, view, noon).rgb[45, 80].astype(float)
-    lit = _render(ground, view, night, _beam()).rgb[45, 80].astype(float)
-    dark = _render(ground, view, night, _beam(blocked=True)).rgb[45, 80].astype(float)
-    # The ground point (10, 0, 0) seen from the lamp (0, 0, 1): r = (10, 0, −1), d² = 101, 1/d = 0.0995037.
-    # cone: (10 · 0.0995037 − 0.72) / 0.22 = 1.25 → 1; below the cut-off: (0.06 + 0.0995037) / 0.07 → 1;
-    # reach 1 / (1 + 101 / 324) = 0.762353; facing: cos = 0.0995037, ramp 0.0995037 · 20 + 0.4 → 1, times
-    # 0.45 + 0.55 · 0.0995037 = 0.504727: light 0.762353 · 0.504727 = 0.384780 (u_beams = 1 at night).
-    # The day pixel is albedo · (ambient + sun) = albedo · ((0.399, 0.42, 0.4536) + 0.78 · (1, 0.97, 0.9))
-    # = albedo · (1.179, 1.1766, 1.1556); at night albedo · (ambient (0.03, 0.035, 0.05) + 0.384780).
-    ratio = (np.array([0.03, 0.035, 0.05]) + 0.384780) / np.array([1.179, 1.1766, 1.1556])
-    np.testing.assert_allclose(lit, day * ratio, atol=1.0)
+    lit = _render(ground, view, night, _beam(own=True)).rgb[45, 80].astype(float)
+    dark = _render(ground, view, night, _beam(own=True, blocked=True)).rgb[45, 80].astype(float)
+    # Seen from the lamp (0, 0, 1): r = (13, 0, −1), d² = 170, 1/d = 0.0766965.
+    # cone: (13 · 0.0766965 − 0.72) / 0.22 = 1.26 → 1; below the cut-off: (0.06 + 0.0766965) / 0.07 → 1;
+    # reach 1 / (1 + 170 / 324) = 0.655870; facing: cos = 0.0766965, ramp 0.0766965 · 20 + 0.4 → 1, times
+    # 0.45 + 0.55 · 0.0766965 = 0.492183: light 0.655870 · 0.492183 = 0.322808 (u_beams = 1 at night).
+    np.testing.assert_allclose(lit, day * (_NIGHT_AMBIENT + 0.322808) / _NOON_LIGHT, atol=1.0)
     # Behind the vehicle standing in the beam (from 5 m on, within 0.2 rad of the axis) only the ambient is left.
-    np.testing.assert_allclose(dark, day * np.array([0.03, 0.035, 0.05]) / np.array([1.179, 1.1766, 1.1556]), atol=1.0)
+    np.testing.assert_allclose(dark, day * _NIGHT_AMBIENT / _NOON_LIGHT, atol=1.0)
+
+
+def test_another_vehicles_low_beam_lights_the_vertices(ground):
+    # (10, 0, 0) is a vertex of the ground grid: there the per-vertex light is the beam's own value.
+    view = _centre_view((10.0, 0.0, 0.0))
+    day = _render(ground, view, WeatherParameters(sun_altitude_angle=90.0)).rgb[45, 80].astype(float)
+    lit = _render(ground, view, WeatherParameters(sun_altitude_angle=-90.0), _beam(own=False)).rgb[45, 80]
+    # r = (10, 0, −1), d² = 101, 1/d = 0.0995037; cone and cut-off → 1; reach 1 / (1 + 101 / 324) = 0.762353;
+    # facing 0.45 + 0.55 · 0.0995037 = 0.504727: light 0.384780.
+    np.testing.assert_allclose(lit.astype(float), day * (_NIGHT_AMBIENT + 0.384780) / _NOON_LIGHT, atol=1.0)
 
 
 def test_every_vehicle_with_lit_lamps_gets_a_beam_and_the_ego_comes_first():

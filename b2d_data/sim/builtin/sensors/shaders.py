@@ -11,8 +11,9 @@ pixels no geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and
 What varies smoothly over a triangle is lit per vertex (ambient light, the sun's diffuse light on flat or smooth
 faces, sky reflections); what does not is lit per pixel: the sun's shadow (``SHADOW``: a shadow map drawn once per
 frame), fog (UE4's exponential height fog, :func:`lighting.fog_amount`), and at night (``NIGHT``) street-lamp pools
-and the vehicles' lamps (spot lights), whose cones and fall-off a 2 m road strip or a 30 m facade cannot carry in
-its corners. With ``AIRLIGHT`` the ego's low beam also lights the fog between the camera and each pixel.
+and the cameras' own vehicle's low beam, whose cone and fall-off a 2 m road strip or a 30 m facade cannot carry in
+its corners (other vehicles' beams, seen from afar, are lit per vertex). With ``AIRLIGHT`` the own low beam also
+lights the fog between the camera and each pixel.
 Only the colour output depends on any of this: depth, tag and instance id come from the geometry alone.
 """
 

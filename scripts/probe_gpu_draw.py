@@ -66,7 +66,8 @@ def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: d
     timed(renderer, "same view again", _draw, view, *args)
     programs, vaos = renderer._programs, renderer._vaos
     renderer._programs, renderer._vaos = _trivial_programs.setdefault(id(renderer), ({}, {}))
-    S.scene_fragment = lambda m, n, w, d8=False, packed=False: S._header(m, n, w) + S._fragment(TRIVIAL_FRAGMENT, d8, packed)
+    S.scene_fragment = lambda m, n, w, d8=False, packed=False, **variant: (S._header(m, n, w, **variant)
+                                                                           + S._fragment(TRIVIAL_FRAGMENT, d8, packed))
     try:
         timed(renderer, "trivial fragment shader", _draw, view, *args)
     finally:

@@ -27,8 +27,9 @@ import numpy as np
 from b2d_data.format.label_pixels import label_views
 from b2d_data.format.record import CameraFrame
 from b2d_data.sim.builtin.sensors import shaders
-from b2d_data.sim.builtin.sensors.lighting import Lighting
+from b2d_data.sim.builtin.sensors.lighting import FOG_BASE_HEIGHT, Lighting
 from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, grid_triangles
+from b2d_data.sim.builtin.sensors.vehicle_lights import MAX_LIGHTS, NO_BLOCKER, SpotLights, beams_in_view
 
 log = logging.getLogger(__name__)
 
@@ -127,11 +128,56 @@ def projection_from_intrinsic(k: np.ndarray, width: int, height: int, near: floa
     )
 
 
+@dataclass(frozen=True)
+class SunView:
+    """The sun's orthographic view of the ground around a centre, for the shadow map.
+
+    ``viewproj`` maps world points to GL clip coordinates, ``texture`` to shadow-map texture coordinates and depth
+    (all in [0, 1]); ``texel`` is the larger side of one shadow-map texel on the ground (m).
+    """
+
+    viewproj: np.ndarray
+    texture: np.ndarray
+    texel: float
+    half_extent: tuple[float, float]
+
+
+def sun_view(sun_dir: np.ndarray, centre: np.ndarray, radius: float, size: int, height: float = 30.0,
+             towards_sun: float = 300.0) -> SunView:  # fmt: skip
+    """The sun's view of a disc of ``radius`` m around ``centre`` and what stands on it up to ``height`` m.
+
+    Casters up to ``towards_sun`` m from the centre towards the sun are kept. The centre is snapped to whole
+    texels so that a moving ego does not make the shadow edges crawl.
+    """
+    f = -np.asarray(sun_dir, np.float64)
+    f /= np.linalg.norm(f)
+    up = np.array([0.0, 0.0, 1.0]) if abs(f[2]) < 0.999 else np.array([1.0, 0.0, 0.0])
+    u = np.cross(f, up)
+    u /= np.linalg.norm(u)
+    w = np.cross(u, f)
+    sin_alt = abs(float(f[2]))
+    half = (radius, radius * sin_alt + height * math.sqrt(max(0.0, 1.0 - sin_alt * sin_alt)))
+    c = np.asarray(centre, np.float64)
+    a, b = float(c @ u), float(c @ w)
+    step_a, step_b = 2.0 * half[0] / size, 2.0 * half[1] / size
+    c = c + u * (round(a / step_a) * step_a - a) + w * (round(b / step_b) * step_b - b)
+    far = radius + height
+    view = np.eye(4)
+    view[0, :3], view[1, :3], view[2, :3] = u / half[0], w / half[1], f * (2.0 / (far + towards_sun))
+    view[:3, 3] = -view[:3, :3] @ c
+    view[2, 3] += (towards_sun - far) / (far + towards_sun)
+    bias = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]])
+    return SunView(view, bias @ view, max(step_a, step_b), half)
+
+
 def _set(program: moderngl.Program, name: str, value: object) -> None:
     """Set a uniform if the program uses it (GLSL compilers drop unused ones); matrices go column-major."""
     if name not in program:
         return
-    if isinstance(value, np.ndarray):
+    if isinstance(value, bytes):  # a uniform array of vec4, already laid out: as many as the program kept
+        uniform = program[name]
+        program[name].write(value[: 16 * uniform.array_length])
+    elif isinstance(value, np.ndarray):
         program[name].write(np.ascontiguousarray(value.T, dtype="f4").tobytes())
     else:
         program[name].value = value
@@ -449,9 +495,17 @@ def _current(method: _F) -> _F:
 class Renderer:
     """Renders camera views of a static mesh (uploaded once) plus a per-frame dynamic mesh."""
 
+    #: Texture unit of the shadow map (0: lamp light-map, 1: noise, 2: the JPEG planes' colour input).
+    SHADOW_UNIT = 3
+    #: Radius (m) around the ego within which the sun's shadows are drawn; they fade out at its edge.
+    SHADOW_RADIUS = 70.0
+    #: Indirect-command slot of the shadow pass (cameras use 0, 1, …).
+    SHADOW_SLOT = -1
+
     def __init__(
         self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False,
         jpeg_planes: JpegPlanes = "off", packed: bool | None = None, pixel_buffer: bool | None = None,
+        shadows: bool = True, shadow_size: int | None = None,
     ) -> None:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
@@ -503,26 +557,40 @@ class Renderer:
         self._lightmap = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint8).tobytes(), dtype="f1")
         self._lightmap_rect = (0.0, 0.0, 1.0, 1.0)
         self.static_triangles = 0
+        # The sun's shadow map, drawn once per frame (the first render after the scene, actors or sun changed) and
+        # read by every camera of it. llvmpipe draws a quarter of the texels: its shadow pass costs CPU.
+        self.shadows = shadows
+        self.shadow_size = shadow_size or (2048 if self.hardware else 1024)
+        self._shadow_maps: dict[int, tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
+        self._shadow_map: moderngl.Texture | None = None
+        self._sun_view: SunView | None = None
+        self._shadow_key: tuple | None = None
+        self._scene_version = 0  # counts static and dynamic uploads: a new one makes the shadow map stale
         # glMultiDrawElementsIndirect is core in OpenGL 4.3 (llvmpipe and the NVIDIA driver both have it).
         self.multi_draw = self.ctx.version_code >= 430
         self._indirect: dict[int, moderngl.Buffer] = {}
 
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
-        """A scene program ("scene", material, night, wet) or the sky program ("sky", clouds), compiled once."""
+        """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam), the sky
+        program ("sky", clouds, falloff, airlight) or the shadow-map program ("shadow",), compiled once."""
         prog = self._programs.get(key)
         if prog is None:
             if key[0] == "sky":
-                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(key[1]),
+                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(*key[1:]),
                                         fragment_shader=shaders.sky_fragment(self.depth8, self.packed))  # fmt: skip
+            elif key[0] == "shadow":
+                prog = self.ctx.program(vertex_shader=shaders.SHADOW_VERTEX, fragment_shader=shaders.SHADOW_FRAGMENT)
             else:
-                _, material, night, wet = key
+                _, material, night, wet, shadow, airlight, falloff, lights, own = key
+                variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own}
                 prog = self.ctx.program(
-                    vertex_shader=shaders.scene_vertex(material, night, wet),
-                    fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed),
+                    vertex_shader=shaders.scene_vertex(material, night, wet, **variant),
+                    fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed, **variant),
                 )
             _set(prog, "u_noise", 1)
             _set(prog, "u_lightmap", 0)
+            _set(prog, "u_shadow_map", self.SHADOW_UNIT)
             self._programs[key] = prog
         return prog
 
@@ -563,6 +631,7 @@ class Renderer:
         self._static_vbo = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * VERTEX_DTYPE.itemsize)
         self._static_ibo = self.ctx.buffer(indices.tobytes() if len(indices) else b"\0" * 4)
         self.static_triangles = len(mesh)
+        self._scene_version += 1
 
     @_current
     def set_lightmap(self, image: np.ndarray, origin: tuple[float, float], size: tuple[float, float]) -> None:
@@ -589,6 +658,7 @@ class Renderer:
             self._dyn_vbo = self.ctx.buffer(reserve=max(data.nbytes, 2 * capacity), dynamic=True)
         if data.nbytes:
             self._dyn_vbo.write(data.tobytes())
+        self._scene_version += 1
 
     # ------------------------------------------------------------------------------------------ drawing
     def _set_uniforms(self, program: moderngl.Program, values: dict[str, object]) -> None:
@@ -600,7 +670,28 @@ class Renderer:
             _set(program, name, value)
             last[name] = value
 
-    def _weather_uniforms(self, light: Lighting, head: tuple[np.ndarray, np.ndarray] | None) -> dict[str, object]:
+    @staticmethod
+    def _light_uniforms(lights: SpotLights) -> dict[str, object]:
+        """The low beams of one view (padded with dark ones to the compiled count, shaders.light_count)."""
+        n = min(len(lights), MAX_LIGHTS)
+        pos, direction, color, block = (np.zeros((MAX_LIGHTS, 4), "f4") for _ in range(4))
+        pos[:n, :3] = lights.position[:n]
+        pos[:, 3] = NO_BLOCKER
+        block[:, 2:] = 1.0
+        if lights.blocker is not None and lights.block_distance is not None:
+            pos[:n, 3] = lights.block_distance[:n]
+            block[:n] = lights.blocker[:n]
+        direction[:n, :3] = lights.direction[:n]
+        color[:n, :3] = lights.color[:n]
+        return {
+            "u_light_pos": pos.tobytes(),
+            "u_light_dir": direction.tobytes(),
+            "u_light_col": color.tobytes(),
+            "u_light_block": block.tobytes(),
+        }
+
+    def _weather_uniforms(self, light: Lighting) -> dict[str, object]:
+        sun = self._sun_view
         return {
             "u_sky_zenith": tuple(map(float, light.sky_zenith)),
             "u_sky_horizon": tuple(map(float, light.sky_horizon)),
@@ -609,18 +700,82 @@ class Renderer:
             "u_cloudiness": float(light.cloudiness),
             "u_fog_color": tuple(map(float, light.fog_color)),
             "u_fog_density": float(light.fog_density),
+            "u_fog_falloff": float(light.fog_falloff),
             "u_fog_start": float(light.fog_start),
+            "u_fog_base": float(FOG_BASE_HEIGHT),
             "u_ambient_sky": tuple(map(float, light.ambient_sky)),
             "u_ambient_ground": tuple(map(float, light.ambient_ground)),
             "u_wetness": float(light.wetness),
             "u_puddles": float(light.puddles),
             "u_night": float(light.night),
+            "u_beams": float(light.beams),
             "u_lightmap_rect": tuple(map(float, self._lightmap_rect)),
-            "u_head_pos": (0.0, 0.0, -1e4) if head is None else tuple(map(float, head[0])),
-            "u_head_dir": (0.0, 0.0, 1.0) if head is None else tuple(map(float, head[1])),
+            # Street lamps light the fog around them the more, the denser it is (its share within 20 m).
+            "u_lamp_glow": float(1.0 - math.exp(-20.0 * light.fog_density)),
+            "u_shadow_matrix": sun.texture if sun is not None else np.eye(4),
+            # Along the normal by up to a texel (no more than 15 cm: a coarse map leans on the polygon offset).
+            "u_shadow_offset": min(float(sun.texel), 0.15) if sun is not None else 0.0,
+            "u_shadow_strength": float(light.shadow_strength),
             "u_sky_depth": shaders.SKY_DEPTH,
             "u_sky_tag": shaders.SKY_TAG,
-        }
+        }  # fmt: skip
+
+    def _wants_shadows(self, light: Lighting) -> bool:
+        return self.shadows and light.shadow_strength > 0.0
+
+    def _shadow_target(self, size: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        """The depth texture (compared and filtered: 2×2 PCF in hardware) and framebuffer of a shadow map size."""
+        target = self._shadow_maps.get(size)
+        if target is None:
+            texture = self.ctx.depth_texture((size, size))
+            texture.compare_func = "<="
+            texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            texture.repeat_x = False
+            texture.repeat_y = False
+            target = self._shadow_maps[size] = (texture, self.ctx.framebuffer(depth_attachment=texture))
+        return target
+
+    def _update_shadow_map(self, light: Lighting, centre: np.ndarray) -> None:
+        """Draw the sun's shadow map around ``centre`` unless the one drawn last still holds (same scene and sun).
+
+        Under partial overcast the map is four times coarser: its filtered texels blur the shadow's edge over about
+        the penumbra (:attr:`Lighting.shadow_softness`) at the cost of one lookup, where taps a penumbra apart would
+        cost four on a software rasteriser.
+        """
+        size = self.shadow_size if light.shadow_softness <= 0.4 else max(128, self.shadow_size // 4)
+        sun = sun_view(light.sun_dir, centre, self.SHADOW_RADIUS, size)
+        key = (self._scene_version, size, tuple(sun.viewproj.ravel().tolist()))
+        texture, fbo = self._shadow_target(size)
+        self._sun_view, self._shadow_map = sun, texture
+        if key == self._shadow_key:
+            return
+        self._shadow_key = key
+        prog = self._program(("shadow",))
+        _set(prog, "u_sun_viewproj", sun.viewproj)
+        fbo.use()
+        fbo.viewport = (0, 0, size, size)
+        fbo.clear(depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        self.ctx.depth_func = "<"
+        # Slope-scaled offset: a face lit at a grazing angle would otherwise shadow itself in stripes.
+        self.ctx.polygon_offset = (2.0, 4.0)
+        try:
+            total = sum(int(t.count.sum()) for t in self._dyn_batches.values())
+            if total:
+                self._vao(("shadow",), "dynamic").render(moderngl.TRIANGLES, vertices=total, first=0)
+            runs = self._static_culling.runs(sun.viewproj, np.asarray(centre, np.float64))
+            every = np.concatenate([r for r in runs.values() if len(r)]) if runs else _NO_RUNS
+            if len(every):
+                vao = self._vao(("shadow",), "static")
+                if self.multi_draw:
+                    buffer, _ = self._indirect_commands({0: every}, self.SHADOW_SLOT)
+                    vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(every), first=0)
+                else:
+                    for first, count in every.tolist():
+                        vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+        finally:
+            self.ctx.polygon_offset = (0.0, 0.0)
 
     def _indirect_commands(self, runs: dict[int, np.ndarray], slot: int) -> tuple[moderngl.Buffer, dict[int, int]]:
         """Upload the draw commands of every material's runs for view ``slot``; returns the buffer and offsets.
@@ -689,7 +844,8 @@ class Renderer:
         # The planes are read back through framebuffers: their image stores must be visible to glReadPixels.
         self.ctx.memory_barrier(moderngl.FRAMEBUFFER_BARRIER_BIT | moderngl.PIXEL_BUFFER_BARRIER_BIT)
 
-    def _draw(self, view: CameraView, light: Lighting, uniforms: dict[str, object], slot: int = 0) -> _Targets:
+    def _draw(self, view: CameraView, light: Lighting, uniforms: dict[str, object], slot: int = 0,
+              lights: SpotLights | None = None) -> _Targets:  # fmt: skip
         k = view.intrinsic()
         viewproj = projection_from_intrinsic(k, view.width, view.height, self.near, self.far) @ view.world_to_cv()
         targets = self._targets_for(view.width, view.height, view.labels, slot)
@@ -707,11 +863,26 @@ class Renderer:
         pose = view.sensor_to_world
         self._lightmap.use(0)
         self._noise.use(1)
-        night, wet = light.night > 0.0, light.wetness > 0.0 or light.puddles > 0.0
+        # The night programs: street lamps (night) or vehicle beams (twilight, lamps lit) to light.
+        night = light.night > 0.0 or (light.beams > 0.0 and lights is not None and len(lights) > 0)
+        wet = light.wetness > 0.0 or light.puddles > 0.0
+        shadow = self._wants_shadows(light) and self._shadow_map is not None
+        if shadow:
+            assert self._shadow_map is not None
+            self._shadow_map.use(self.SHADOW_UNIT)
+        # Only the beams that can light what this camera sees, and only at night.
+        seen = beams_in_view(lights, viewproj) if night and lights is not None else SpotLights.empty()
+        beams = self._light_uniforms(seen)
+        # The ego's low beam lights the fog when there is fog to light.
+        airlight = night and light.fog_density > 0.005 and seen.own
+        falloff = light.fog_falloff > 0.0
+        variant = (shadow, airlight, falloff,
+                   shaders.light_count(len(seen)) if night else 0, night and seen.own)  # fmt: skip
         per_camera = {
             "u_viewproj": viewproj,
             "u_cam_pos": tuple(map(float, pose[:3, 3])),
             "u_cam_fwd": tuple(map(float, pose[:3, 0])),
+            **beams,
         }
         camera_uniforms = {**uniforms, **per_camera}
         static_runs = self._static_culling.runs(viewproj, pose[:3, 3])
@@ -721,7 +892,7 @@ class Renderer:
             runs = static_runs.get(material, _NO_RUNS)
             if dyn is None and not len(runs):
                 continue
-            key = ("scene", int(material), night, wet)
+            key = ("scene", int(material), night, wet, *variant)
             prog = self._program(key)
             self._set_uniforms(prog, camera_uniforms)
             if dyn is not None:
@@ -738,10 +909,11 @@ class Renderer:
                     for first, count in runs.tolist():
                         vao.render(moderngl.TRIANGLES, vertices=count, first=first)
         self.ctx.depth_func = "<="
-        sky_key = ("sky", light.cloudiness > 0.01)
+        sky_key = ("sky", light.cloudiness > 0.01, falloff, airlight)
         sky = self._program(sky_key)
-        self._set_uniforms(sky, uniforms)
+        self._set_uniforms(sky, {**uniforms, **beams})
         _set(sky, "u_cam_rot", pose[:3, :3] @ UE_TO_CV[:3, :3].T)  # OpenCV axes → world
+        _set(sky, "u_cam_pos", per_camera["u_cam_pos"])
         _set(sky, "u_intrinsic", (float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])))
         _set(sky, "u_viewport", (float(view.width), float(view.height)))
         self._vao(sky_key, "sky").render(moderngl.TRIANGLES)
@@ -752,16 +924,21 @@ class Renderer:
         self,
         views: Sequence[CameraView],
         lighting: Lighting,
-        headlight: tuple[np.ndarray, np.ndarray] | None = None,
+        lights: SpotLights | None = None,
+        centre: np.ndarray | None = None,
     ) -> list[CameraFrame]:
         """Draw each view and read back RGB (and depth / semantic / instance when ``labels``).
 
-        Depth is float32 metres, or with ``depth8`` the uint8 metres the depth PNG stores (``depth_to_png_pixels``).
+        ``lights`` are the vehicle lamps lighting the scene at night; ``centre`` is where the sun's shadows are drawn
+        around (the ego; by default the first view's position). Depth is float32 metres, or with ``depth8`` the
+        uint8 metres the depth PNG stores (``depth_to_png_pixels``).
         """
-        uniforms = self._weather_uniforms(lighting, headlight)
+        if self._wants_shadows(lighting) and views:
+            self._update_shadow_map(lighting, views[0].sensor_to_world[:3, 3] if centre is None else centre)
+        uniforms = self._weather_uniforms(lighting)
         # Every view gets its own targets and all are drawn before any is read back: the rasteriser threads work
         # on one camera while this thread prepares the next, and read-backs do not stall between draws.
-        drawn = [self._draw(view, lighting, uniforms, slot) for slot, view in enumerate(views)]
+        drawn = [self._draw(view, lighting, uniforms, slot, lights) for slot, view in enumerate(views)]
         for targets in drawn:
             if targets.packed is not None:
                 self._unpack(targets)

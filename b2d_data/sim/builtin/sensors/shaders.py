@@ -5,19 +5,120 @@ along the optical axis; R8UI uint8 metres, rounded as the depth PNG stores them,
 tag and instance id packed as RGBA8UI (tag, id low byte, id high byte, 255: the bytes of an instance PNG pixel, so
 the read-back is the image the PNG encoder takes). It is compiled once per material and weather
 variant (``#define`` switches) because a software rasteriser runs every branch of a shader for every pixel:
-specialised programs keep each pixel's work to what its material needs. The sky program fills the pixels no
-geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and the sky tag.
+specialised programs keep each pixel's work to what its material and the weather need. The sky program fills the
+pixels no geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and the sky tag.
 
-For the same reason lighting, fog and reflections are computed per vertex (meshes are tessellated finely enough
-for that: 2 m road strips, an 8 m terrain grid, a sky grid) and fragment shaders mostly copy an interpolated colour.
+What varies smoothly over a triangle is lit per vertex (ambient light, the sun's diffuse light on flat or smooth
+faces, sky reflections); what does not is lit per pixel: the sun's shadow (``SHADOW``: a shadow map drawn once per
+frame), fog (UE4's exponential height fog, :func:`lighting.fog_amount`), and at night (``NIGHT``) street-lamp pools
+and the cameras' own vehicle's low beam, whose cone and fall-off a 2 m road strip or a 30 m facade cannot carry in
+its corners (other vehicles' beams, seen from afar, are lit per vertex). With ``AIRLIGHT`` the own low beam also
+lights the fog between the camera and each pixel.
+Only the colour output depends on any of this: depth, tag and instance id come from the geometry alone.
 """
 
 from __future__ import annotations
+
+from b2d_data.sim.builtin.sensors.vehicle_lights import MAX_LIGHTS
 
 #: Depth written for sky pixels: CARLA's far plane (1000 m).
 SKY_DEPTH = 1000.0
 #: CARLA semantic tag of sky pixels.
 SKY_TAG = 11
+#: Samples along a camera ray of the low beam's light in the fog (``AIRLIGHT``).
+AIRLIGHT_SAMPLES = 8
+#: Farthest distance (m) from the camera at which the ego's low beam still lights the fog.
+AIRLIGHT_REACH = 45.0
+
+# Lamp colour and strength of the street-lamp pools (the light-map's 1.0), shared by surfaces and fog.
+_LAMPS = """
+const vec3 LAMP_LIGHT = vec3(1.0, 0.82, 0.58) * 0.45;
+"""
+
+# Fog as UE4's exponential height fog: the optical depth along the ray from the camera to p, skipping the first
+# u_fog_start metres, of a density u_fog_density · exp(−u_fog_falloff · (z − u_fog_base)) (lighting.fog_amount).
+_FOG = """
+uniform float u_fog_density;
+uniform float u_fog_falloff;
+uniform float u_fog_start;
+uniform float u_fog_base;
+float fog_density_at(float z) {
+#if FALLOFF
+    return u_fog_density * exp(clamp(-u_fog_falloff * (z - u_fog_base), -80.0, 80.0));
+#else
+    return u_fog_density;
+#endif
+}
+float fog_amount(vec3 cam, vec3 p) {
+    vec3 d = p - cam;
+    float len = length(d);
+    float inside = max(len - u_fog_start, 0.0);
+#if FALLOFF
+    float slope = d.z / max(len, 1e-4);
+    float x = u_fog_falloff * slope * inside;
+    float g = abs(x) > 1e-4 ? (1.0 - exp(-x)) / x : 1.0 - 0.5 * x;
+    return 1.0 - exp(-fog_density_at(cam.z + slope * min(u_fog_start, len)) * inside * g);
+#else
+    // Without a height falloff (every Bench2Drive weather) the density is the same everywhere.
+    return 1.0 - exp(-u_fog_density * inside);
+#endif
+}
+"""
+
+# The ego's low beam scattered towards the camera by the fog between it and p: the integral of density × beam ×
+# transmittance, sampled more densely near the camera where the beam is strongest. It varies slowly over the image
+# (a glow), so it is computed per vertex (and per sky-grid vertex).
+_AIRLIGHT = """
+vec3 airlight(vec3 cam, vec3 p) {
+    // Light 0 is the ego's low beam (the renderer compiles AIRLIGHT only then).
+    vec3 d = p - cam;
+    float len = min(length(d), AIRLIGHT_REACH);
+    vec3 dir = normalize(d);
+    vec3 sum = vec3(0.0);
+    for (int k = 0; k < AIRLIGHT_SAMPLES; ++k) {
+        float s = (float(k) + 0.5) / float(AIRLIGHT_SAMPLES);
+        float t = len * s * s;
+        vec3 x = cam + dir * t;
+        float seen = step(u_fog_start, t) * (1.0 - fog_amount(cam, x));
+        sum += spot_light(0, x, vec3(0.0), false) * fog_density_at(x.z) * seen * (2.0 * s * len);
+    }
+    // Isotropic scattering over the sample spacing (1 / AIRLIGHT_SAMPLES), times the fog's albedo.
+    return sum * (0.35 / float(AIRLIGHT_SAMPLES)) * u_beams;
+}
+"""
+
+# Low beams (vehicle_lights.SpotLights): position, unit direction, RGB strength. A beam lights a cone about ±35°
+# wide, cut off just above the lamp's horizon as a dipped beam is aimed (a tenth spills above it), and falls off as
+# 1 / (1 + d²/R²): the inverse square law away from the lamp, capped near it. ``surface``: the light on a face with
+# normal n (its facing term), else on the fog. The cameras' own vehicle's beam (OWN: light 0) is lit per pixel, the
+# other vehicles' beams per vertex: each light costs every pixel of a software rasteriser some 6 ns, and the other
+# beams fall on the road (2 m strips) from afar. NLIGHTS is a compile-time count (the renderer pads the lights to
+# the next of a few sizes with dark ones), so that the loop unrolls into straight uniform reads.
+_SPOTS = """
+uniform vec4 u_light_pos[MAX_LIGHTS];
+uniform vec4 u_light_dir[MAX_LIGHTS];
+uniform vec4 u_light_col[MAX_LIGHTS];
+uniform vec4 u_light_block[MAX_LIGHTS];  // the vehicle standing in the beam: direction, cos of its half angle
+const float LOW_BEAM_REACH = 18.0;
+vec3 spot_light(int i, vec3 x, vec3 n, bool surface) {
+    // Linear ramps, not smoothstep: a software rasteriser pays for every instruction of every light at every pixel.
+    vec3 r = x - u_light_pos[i].xyz;
+    float d2 = dot(r, r);
+    float inv = inversesqrt(d2 + 1e-4);
+    float cone = clamp((dot(r, u_light_dir[i].xyz) * inv - 0.72) * (1.0 / 0.22), 0.0, 1.0);  // full within ±20°
+    float below = clamp((0.06 - r.z * inv) * (1.0 / 0.07), 0.1, 1.0);  // cut off 1°-3.5° above the lamp's horizon
+    // Behind the vehicle standing in the beam (farther than u_light_pos.w, within its cone) the lamp is hidden.
+    vec4 b = u_light_block[i];
+    float hidden = clamp((d2 * inv - u_light_pos[i].w) * 2.0, 0.0, 1.0) * clamp((dot(r, b.xyz) * inv - b.w) * 400.0, 0.0, 1.0);
+    float w = cone * below * (1.0 - hidden) / (1.0 + d2 * (1.0 / (LOW_BEAM_REACH * LOW_BEAM_REACH)));
+    if (surface) {
+        // Lambert's cosine, lifted at grazing light: asphalt and paint send part of a low beam back towards it.
+        float c = -dot(n, r) * inv;
+        w *= clamp(c * 20.0 + 0.4, 0.0, 1.0) * (0.45 + 0.55 * max(c, 0.0));
+    }
+    return u_light_col[i].rgb * w;
+}
+"""
 
 _SCENE_VERTEX = """
 uniform mat4 u_viewproj;
@@ -29,92 +130,128 @@ uniform vec3 u_ambient_sky;
 uniform vec3 u_ambient_ground;
 uniform vec3 u_sky_zenith;
 uniform vec3 u_sky_horizon;
-uniform vec3 u_fog_color;
-uniform float u_fog_density;
-uniform float u_fog_start;
 uniform float u_wetness;
 uniform float u_night;
 #if NIGHT
-uniform sampler2D u_lightmap;
-uniform vec4 u_lightmap_rect;
-uniform vec3 u_head_pos;
-uniform vec3 u_head_dir;
+uniform float u_beams;
+SPOT_FUNCTIONS
+out vec3 v_beams;
+#endif
+#if AIRLIGHT
+FOG_FUNCTIONS
+AIRLIGHT_FUNCTION
+out vec3 v_air;
+#endif
+#if SHADOW
+uniform mat4 u_shadow_matrix;   // world -> shadow-map texture coordinates and depth, all in [0, 1]
+uniform float u_shadow_offset;  // metres along the normal: keeps a lit face from shadowing itself
+out vec3 v_shadow;
+out vec3 v_sun;
 #endif
 in vec3 in_pos;
 in vec3 in_normal;
 in vec4 in_color;
 in uvec2 in_ids;
+out vec3 v_pos;
 out vec3 v_color;
 out float v_depth;
 flat out uvec2 v_ids;
+#if NIGHT
+out vec3 v_nrm;
+out vec3 v_albedo;
+#endif
 #if MAT == 2
 out vec3 v_alt;
 out vec2 v_facade;
 flat out float v_wall;
-#if NIGHT
-out vec3 v_alt_lit;
+#if SHADOW
+out vec3 v_alt_sun;
 #endif
 #elif MAT == 1 && WET
 out vec3 v_alt;
 out vec2 v_xy;
+#if SHADOW
+out vec3 v_alt_sun;
+#endif
 #endif
 
-vec3 glossy(vec3 col, vec3 n, vec3 v, float gloss, float mirror) {
-    // Fresnel-weighted reflection of the sky (dimmed by ``mirror``: streets reflect buildings, not only sky)
-    // plus a sun highlight.
-    vec3 r = reflect(-v, n);
-    float fres = 0.04 + 0.96 * pow(1.0 - max(dot(n, v), 0.0), 5.0);
-    vec3 sky = mix(u_sky_horizon, u_sky_zenith, sqrt(clamp(r.z, 0.0, 1.0))) * mirror;
-    vec3 hv = normalize(u_sun_dir + v);
-    return mix(col, sky, fres * gloss) + u_sun_color * pow(max(dot(n, hv), 0.0), 60.0) * gloss * 1.5;
+vec3 shade(vec3 albedo, vec3 ambient, vec3 sunlit, vec3 n, vec3 v, float gloss, float mirror, out vec3 sun) {
+    // Diffuse light, plus for glossy materials a Fresnel-weighted reflection of the sky (dimmed by ``mirror``:
+    // streets reflect buildings, not only sky) and a sun highlight. ``sun``: the part the sun gives, which a
+    // shadow takes away.
+    vec3 col = albedo * (ambient + sunlit);
+    sun = albedo * sunlit;
+    if (gloss > 0.0) {
+        vec3 r = reflect(-v, n);
+        float a = (0.04 + 0.96 * pow(1.0 - max(dot(n, v), 0.0), 5.0)) * gloss;
+        vec3 sky = mix(u_sky_horizon, u_sky_zenith, sqrt(clamp(r.z, 0.0, 1.0))) * mirror;
+        vec3 highlight = u_sun_color * pow(max(dot(n, normalize(u_sun_dir + v)), 0.0), 60.0) * gloss * 1.5;
+        col = col * (1.0 - a) + sky * a + highlight;
+        sun = sun * (1.0 - a) + highlight;
+    }
+    return col;
 }
 
 void main() {
     vec3 p = in_pos;
     vec3 to_cam = u_cam_pos - p;
-    float dist = length(to_cam);
-    vec3 v = to_cam / max(dist, 1e-4);
+    vec3 v = to_cam / max(length(to_cam), 1e-4);
     vec3 n = normalize(in_normal);
     n = dot(n, v) < 0.0 ? -n : n;
     vec3 albedo = in_color.rgb;
-    vec3 light = mix(u_ambient_ground, u_ambient_sky, n.z * 0.5 + 0.5) + u_sun_color * max(dot(n, u_sun_dir), 0.0);
-#if NIGHT
-    vec2 luv = (p.xy - u_lightmap_rect.xy) * u_lightmap_rect.zw;
-    float lamp = textureLod(u_lightmap, luv, 0.0).r * clamp(1.0 - (p.z - 0.5) / 6.0, 0.0, 1.0);
-    vec3 hl = p - u_head_pos;
-    float hd = length(hl);
-    vec3 hdir = hl / max(hd, 1e-3);
-    float cone = smoothstep(0.8, 0.95, dot(hdir, u_head_dir));
-    float facing = max(dot(n, -hdir), 0.0) * 0.8 + 0.2;
-    float reach = hd / 12.0;
-    vec3 lamps = vec3(1.0, 0.82, 0.58) * lamp * 0.35;
-    vec3 beam = vec3(1.0, 0.96, 0.85) * cone * facing * 0.75 / (1.0 + reach * reach);
-    light += (lamps + beam) * u_night;
+    vec3 ambient = mix(u_ambient_ground, u_ambient_sky, n.z * 0.5 + 0.5);
+    vec3 sunlit = u_sun_color * max(dot(n, u_sun_dir), 0.0);
+    vec3 sun;
+#if MAT == 3
+    vec3 col = shade(albedo, ambient, sunlit, n, v, 0.7, 1.0, sun);
+#elif MAT == 6
+    vec3 col = shade(albedo, ambient, sunlit, n, v, 0.12, 1.0, sun);
+#else
+    vec3 col = shade(albedo, ambient, sunlit, n, v, 0.0, 0.0, sun);
 #endif
-    float fog = 1.0 - exp(-u_fog_density * max(dist - u_fog_start, 0.0));
-    vec3 col = albedo * light;
 #if MAT == 4
     col += albedo * (0.25 + 1.6 * u_night);
-#elif MAT == 3
-    col = glossy(col, n, v, 0.7, 1.0);
-#elif MAT == 6
-    col = glossy(col, n, v, 0.12, 1.0);
 #elif MAT == 1 && WET
-    vec3 wet = glossy(albedo * 0.45 * light, n, v, 0.6, 0.45);
+    vec3 wet_sun;
+    vec3 wet = shade(albedo * 0.45, ambient, sunlit, n, v, 0.6, 0.45, wet_sun);
     col = mix(col, wet, u_wetness);
-    v_alt = mix(wet, u_fog_color, fog);
+    sun = mix(sun, wet_sun, u_wetness);
+    v_alt = wet;
+#if SHADOW
+    v_alt_sun = wet_sun;
+#endif
     v_xy = p.xy * 0.029;
 #elif MAT == 2
-    vec3 window = glossy(vec3(0.11, 0.14, 0.18) * light, n, v, 0.45, 1.0);
-    v_alt = mix(window, u_fog_color, fog);
-#if NIGHT
-    v_alt_lit = mix(window + vec3(1.0, 0.78, 0.45) * 0.32 * u_night, u_fog_color, fog);
+    vec3 window_sun;
+    v_alt = shade(vec3(0.11, 0.14, 0.18), ambient, sunlit, n, v, 0.45, 1.0, window_sun);
+#if SHADOW
+    v_alt_sun = window_sun;
 #endif
     float side = abs(n.x) > abs(n.y) ? p.y : p.x;
     v_facade = vec2(side / 3.1, p.z / 3.3);
     v_wall = abs(n.z) < 0.5 ? 1.0 : 0.0;
 #endif
-    v_color = mix(col, u_fog_color, fog);
+#if SHADOW
+    v_sun = sun;
+    v_shadow = (u_shadow_matrix * vec4(p + n * u_shadow_offset, 1.0)).xyz;
+#endif
+#if NIGHT
+    v_nrm = n;
+    v_albedo = albedo;
+    vec3 others = vec3(0.0);
+#if MAT != 2
+    // Not on facades: a wall is two triangles, whose corners cannot carry a beam's pool.
+    for (int i = OWN; i < NLIGHTS; ++i) {
+        others += spot_light(i, p, n, true);
+    }
+#endif
+    v_beams = others * u_beams;
+#endif
+#if AIRLIGHT
+    v_air = airlight(u_cam_pos, p);
+#endif
+    v_pos = p;
+    v_color = col;
     v_depth = dot(p - u_cam_pos, u_cam_fwd);
     v_ids = in_ids;
     gl_Position = u_viewproj * vec4(p, 1.0);
@@ -123,7 +260,33 @@ void main() {
 
 _SCENE_FRAGMENT = """
 uniform float u_puddles;
+uniform float u_wetness;
+uniform float u_night;
 uniform sampler2D u_noise;
+uniform vec3 u_cam_pos;
+uniform vec3 u_fog_color;
+FOG_FUNCTIONS
+#if SHADOW
+uniform sampler2DShadow u_shadow_map;
+uniform float u_shadow_strength;
+in vec3 v_shadow;
+in vec3 v_sun;
+#endif
+#if NIGHT
+uniform sampler2D u_lightmap;
+uniform vec4 u_lightmap_rect;
+uniform float u_lamp_glow;
+uniform float u_beams;
+LAMP_CONSTANTS
+SPOT_FUNCTIONS
+in vec3 v_nrm;
+in vec3 v_albedo;
+in vec3 v_beams;
+#endif
+#if AIRLIGHT
+in vec3 v_air;
+#endif
+in vec3 v_pos;
 in vec3 v_color;
 in float v_depth;
 flat in uvec2 v_ids;
@@ -131,34 +294,103 @@ flat in uvec2 v_ids;
 in vec3 v_alt;
 in vec2 v_facade;
 flat in float v_wall;
-#if NIGHT
-in vec3 v_alt_lit;
+#if SHADOW
+in vec3 v_alt_sun;
 #endif
 #elif MAT == 1 && WET
 in vec3 v_alt;
 in vec2 v_xy;
+#if SHADOW
+in vec3 v_alt_sun;
+#endif
 #endif
 layout(location = 0) out vec4 f_color;
 DEPTH_OUT
 layout(location = 2) out uvec4 f_labels;
 layout(location = 3) out uint f_tag;
 
+#if SHADOW
+float sun_shadow() {
+    // Share of the sun's light this fragment loses: 0 in the sun, u_shadow_strength in full shadow. The
+    // comparison sampler filters 2×2 texels: an anti-aliased edge, blurred over a penumbra by the coarser map of
+    // an overcast sky. Beyond the map's edge every fragment is sunlit.
+    float lit = texture(u_shadow_map, vec3(v_shadow.xy, min(v_shadow.z, 1.0)));
+    vec2 edge = abs(v_shadow.xy - 0.5) * 2.0;
+    lit = mix(lit, 1.0, smoothstep(0.9, 1.0, max(edge.x, edge.y)));
+    return (1.0 - lit) * u_shadow_strength;
+}
+#endif
+
+#if NIGHT
+float lamp_pool(vec3 p) {
+    vec2 luv = (p.xy - u_lightmap_rect.xy) * u_lightmap_rect.zw;
+    return texture(u_lightmap, luv).r * clamp(1.0 - (p.z - 0.5) / 6.0, 0.0, 1.0);
+}
+
+vec3 beams(vec3 p, vec3 n) {
+#if OWN
+    return v_beams + spot_light(0, p, n, true) * u_beams;
+#else
+    return v_beams;
+#endif
+}
+#endif
+
+
 void main() {
-    // Lighting, fog and reflections come per vertex; here only per-pixel patterns pick between two colours.
     vec3 col = v_color;
+#if SHADOW
+    // Faces the sun does not reach (walls at noon, the far side of everything) skip the shadow map.
+    float shadow = 0.0;
+    if (v_sun.r + v_sun.g > 0.004) shadow = sun_shadow();
+    col -= v_sun * shadow;
+#endif
+#if NIGHT
+    vec3 albedo = v_albedo;
+#endif
 #if MAT == 2
     vec2 f = fract(v_facade);
     float win = v_wall * step(1.0, v_facade.y) * step(0.22, f.x) * step(f.x, 0.78) * step(0.3, f.y) * step(f.y, 0.82);
+    vec3 window = v_alt;
+#if SHADOW
+    window -= v_alt_sun * shadow;
+#endif
 #if NIGHT
     vec2 cell = floor(v_facade);
     float lit = step(0.72, fract(sin(dot(cell, vec2(12.9898, 78.233))) * 43758.5453));
-    col = mix(col, mix(v_alt, v_alt_lit, lit), win);
-#else
-    col = mix(col, v_alt, win);
+    window += vec3(1.0, 0.78, 0.45) * 0.32 * u_night * lit;
+    albedo = mix(albedo, vec3(0.11, 0.14, 0.18), win);
 #endif
+    col = mix(col, window, win);
 #elif MAT == 1 && WET
     float blob = texture(u_noise, v_xy).g;
-    col = mix(col, v_alt, smoothstep(0.66, 0.72, blob + 0.25 * u_puddles) * u_puddles);
+    float puddle = smoothstep(0.66, 0.72, blob + 0.25 * u_puddles) * u_puddles;
+    vec3 wet = v_alt;
+#if SHADOW
+    wet -= v_alt_sun * shadow;
+#endif
+    col = mix(col, wet, puddle);
+#if NIGHT
+    float water = max(u_wetness, puddle);
+    albedo *= mix(1.0, 0.45, water);
+#endif
+#endif
+    vec3 fog_color = u_fog_color;
+#if NIGHT
+    float pool = lamp_pool(v_pos);
+    col += albedo * (LAMP_LIGHT * pool * u_night + beams(v_pos, normalize(v_nrm)));
+#if MAT == 1 && WET
+    // A wet road mirrors the lamp above a pool: a glossy sheen where the dry road only scatters.
+    col += LAMP_LIGHT * pool * u_night * 0.35 * water;
+#endif
+    // A shoulder above 0.75, as a camera's response has: surfaces in a low beam a few metres away keep their hue.
+    col /= 1.0 + max(col - 0.75, 0.0);
+    // Street lamps light the fog around them.
+    fog_color += LAMP_LIGHT * u_lamp_glow * pool;
+#endif
+    col = mix(col, fog_color, fog_amount(u_cam_pos, v_pos));
+#if AIRLIGHT
+    col += v_air;
 #endif
     f_color = vec4(clamp(col, 0.0, 1.0), 1.0);
     f_depth = depth_out(v_depth);
@@ -168,13 +400,37 @@ void main() {
 """
 
 
-def scene_vertex(material: int, night: bool, wet: bool) -> str:
+#: Light counts a scene program is compiled for; a frame's lights are padded to the next one.
+LIGHT_COUNTS = (0, 1, 2, 3, 4, 6, 8)
+assert LIGHT_COUNTS[-1] == MAX_LIGHTS
+
+
+def light_count(n: int) -> int:
+    """The compiled light count that holds ``n`` lights."""
+    return next(c for c in LIGHT_COUNTS if c >= min(n, MAX_LIGHTS))
+
+
+def _header(material: int, night: bool, wet: bool, shadow: bool = False, airlight: bool = False, falloff: bool = False,
+            lights: int = 0, own: bool = False) -> str:  # fmt: skip
+    return (
+        f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
+        f"#define SHADOW {int(shadow)}\n#define AIRLIGHT {int(airlight)}\n"
+        f"#define FALLOFF {int(falloff)}\n#define NLIGHTS {int(lights)}\n#define OWN {int(own)}\n"
+        f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
+        f"#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
+    )
+
+
+def _functions(source: str) -> str:
+    """Paste the shared GLSL functions into a shader source."""
+    return (source.replace("FOG_FUNCTIONS", _FOG).replace("LAMP_CONSTANTS", _LAMPS).replace("SPOT_FUNCTIONS", _SPOTS)
+            .replace("AIRLIGHT_FUNCTION", _AIRLIGHT))  # fmt: skip
+
+
+def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, airlight: bool = False,
+                 falloff: bool = False, lights: int = 0, own: bool = False) -> str:  # fmt: skip
     """The scene vertex shader specialised for one material and weather variant."""
-    return _header(material, night, wet) + _SCENE_VERTEX
-
-
-def _header(material: int, night: bool, wet: bool) -> str:
-    return f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
+    return _header(material, night, wet, shadow, airlight, falloff, lights, own) + _functions(_SCENE_VERTEX)
 
 
 # The depth target: float metres, or the uint8 the depth PNG stores. OpenCV's float → uint8 conversion is
@@ -222,10 +478,15 @@ def _fragment(source: str, depth8: bool, packed: bool = False) -> str:
     return source.replace("DEPTH_OUT", _DEPTH8 if depth8 else _DEPTH_FLOAT)
 
 
-def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False) -> str:
+def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False, *,
+                   shadow: bool = False, airlight: bool = False, falloff: bool = False, lights: int = 0,
+                   own: bool = False) -> str:  # fmt: skip
     """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float;
-    ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`)."""
-    return _header(material, night, wet) + _fragment(_SCENE_FRAGMENT, depth8, packed)
+    ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``: the sun's shadow map; ``airlight``: the
+    low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the number of low beams, one of
+    :data:`LIGHT_COUNTS`; ``own``: light 0 is the cameras' own beam, lit per pixel)."""
+    header = _header(material, night, wet, shadow, airlight, falloff, lights, own)
+    return header + _fragment(_functions(_SCENE_FRAGMENT), depth8, packed)
 
 
 _SKY_VERTEX = """
@@ -238,8 +499,14 @@ uniform vec3 u_sun_dir;
 uniform vec3 u_sun_color;
 uniform float u_cloudiness;
 uniform vec3 u_fog_color;
-uniform float u_fog_density;
+uniform vec3 u_cam_pos;
 uniform sampler2D u_noise;
+FOG_FUNCTIONS
+#if AIRLIGHT
+uniform float u_beams;
+SPOT_FUNCTIONS
+AIRLIGHT_FUNCTION
+#endif
 in vec2 in_xy;
 out vec3 v_color;
 void main() {
@@ -256,11 +523,16 @@ void main() {
     vec2 uv = d.xy / (max(e, 0.0) + 0.08) * 0.11;
     float nz = textureLod(u_noise, uv, 0.0).g * 0.7 + textureLod(u_noise, uv * 3.1 + 0.37, 0.0).r * 0.3;
     float cover = smoothstep(1.0 - u_cloudiness, 1.2 - 0.6 * u_cloudiness, nz + 0.3 * u_cloudiness);
-    vec3 cloud = mix(u_sky_horizon, vec3(1.0), 0.55) * (0.5 + 0.5 * (1.0 - u_cloudiness)) * (0.8 + 0.3 * nz);
+    // Clouds are white where the sky is lit; at night only the glow of the town below lights them.
+    float lit = clamp(u_sky_horizon.g * 1.4, 0.1, 1.0);
+    vec3 cloud = mix(u_sky_horizon, vec3(lit), 0.55) * (0.5 + 0.5 * (1.0 - u_cloudiness)) * (0.8 + 0.3 * nz);
     col = mix(col, cloud, cover * smoothstep(0.0, 0.1, e));
 #endif
-    float haze = 1.0 - exp(-u_fog_density * 400.0 / (abs(e) * 6.0 + 1.0));
-    v_color = mix(col, u_fog_color, haze);
+    // The sky's fog: the height fog along 400 m of the ray near the horizon, less towards the zenith.
+    v_color = mix(col, u_fog_color, fog_amount(u_cam_pos, u_cam_pos + d * (400.0 / (abs(e) * 6.0 + 1.0))));
+#if AIRLIGHT
+    v_color += airlight(u_cam_pos, u_cam_pos + d * AIRLIGHT_REACH);
+#endif
     gl_Position = vec4(in_xy, 1.0, 1.0);
 }
 """
@@ -282,9 +554,26 @@ void main() {
 """
 
 
-def sky_vertex(clouds: bool) -> str:
-    """The sky vertex shader, with or without the cloud layer."""
-    return f"#version 330\n#define CLOUDS {int(clouds)}\n" + _SKY_VERTEX
+# The sun's shadow map: depth only, seen along the sun's rays (an orthographic projection, renderer.sun_view).
+SHADOW_VERTEX = """#version 330
+uniform mat4 u_sun_viewproj;
+in vec3 in_pos;
+void main() {
+    gl_Position = u_sun_viewproj * vec4(in_pos, 1.0);
+}
+"""
+SHADOW_FRAGMENT = """#version 330
+void main() {
+}
+"""
+
+
+def sky_vertex(clouds: bool, falloff: bool = False, airlight: bool = False) -> str:
+    """The sky vertex shader, with or without the cloud layer, a fog thinning with height and the low beam's glow."""
+    header = (f"#version 330\n#define CLOUDS {int(clouds)}\n#define FALLOFF {int(falloff)}\n#define AIRLIGHT {int(airlight)}\n"
+              f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n"
+              f"#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n")  # fmt: skip
+    return header + _functions(_SKY_VERTEX)
 
 
 def sky_fragment(depth8: bool = False, packed: bool = False) -> str:

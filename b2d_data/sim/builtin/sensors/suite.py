@@ -40,6 +40,7 @@ from b2d_data.sim.builtin.sensors.radar import Radar, RadarPose
 from b2d_data.sim.builtin.sensors.raycast import RayCaster
 from b2d_data.sim.builtin.sensors.renderer import CameraView, Renderer
 from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh, merge
+from b2d_data.sim.builtin.sensors.vehicle_lights import SpotLights, vehicle_lights
 
 if TYPE_CHECKING:
     from b2d_data.maps import Map
@@ -89,18 +90,20 @@ def scene_of_map(map: Map | None) -> StaticScene:
 
 @dataclass
 class TickScene:
-    """What every sensor of a rig sees at one tick: the ego, the actors' meshes, the lamps and the lighting."""
+    """What every sensor of a rig sees at one tick: the ego, the actors' meshes, the lamps and the lighting (the
+    weather's and the vehicles' lit lamps)."""
 
     snapshot: Snapshot
     ego: ActorState
     actor_parts: list[tuple[int, TriangleMesh]]
     lamps: TriangleMesh
     light: Lighting
+    vehicle_lights: SpotLights = SpotLights.empty()
 
 
 class SensorScene:
     """The town as a rig's sensors see it: the static scene in the renderer and the ray caster (either optional),
-    traffic-light and sign fixtures, lamps, actor meshes, lighting and the ego's headlight.
+    traffic-light and sign fixtures, lamps, actor meshes, lighting and the vehicles' lamps.
 
     Subclasses call :meth:`_setup_scene`, then per capture :meth:`_prepare` (which also hands the tick's actors to the
     ray caster, so rays may be cast on ``_pool`` from then on) and :meth:`_render_views`.
@@ -163,12 +166,17 @@ class SensorScene:
         if self.renderer is None and self.caster is None:
             return TickScene(snapshot, ego, [], TriangleMesh.empty(), light)  # IMU and GNSS need no geometry
         self._update_fixtures(snapshot)
-        actor_parts = self.actor_meshes.build_parts(snapshot.actors, light.night > 0.5, snapshot.timestamp)
+        lit = light.vehicle_lights_on
+        actor_parts = self.actor_meshes.build_parts(snapshot.actors, lit, snapshot.timestamp)
         lamps = self._lamps({i: t.state for i, t in snapshot.traffic_lights.items()})
         if self.caster is not None:
             # The LiDAR and radars see everything but the ego (their rays start inside or next to its body).
             self.caster.set_dynamic(merge([m for i, m in actor_parts if i != ego_id] + [lamps]))
-        return TickScene(snapshot, ego, actor_parts, lamps, light)
+        spots = SpotLights.empty()
+        if self.renderer is not None and light.beams > 0.0:
+            # The lamps the actor meshes show lit light the scene (the same rule: light_flags).
+            spots = vehicle_lights(snapshot.actors.values(), ego, lit, snapshot.timestamp)
+        return TickScene(snapshot, ego, actor_parts, lamps, light, spots)
 
     def _render_views(self, tick: TickScene, batches: list[list[CameraView]]) -> list[CameraFrame]:
         """Render every view of ``batches``, in order.
@@ -180,20 +188,11 @@ class SensorScene:
         """
         assert self.renderer is not None
         self.renderer.set_dynamic(merge([m for _, m in tick.actor_parts] + [tick.lamps]))
-        head = self._headlight(tick.ego) if tick.light.night > 0.0 else None
+        # The sun's shadows are drawn around the ego, once per tick whichever batch comes first.
+        lights, centre = tick.vehicle_lights, tick.ego.transform.location.to_array()
         if self.renderer.hardware:
-            return self.renderer.render([v for batch in batches for v in batch], tick.light, head)
-        return [frame for batch in batches if batch for frame in self.renderer.render(batch, tick.light, head)]
-
-    @staticmethod
-    def _headlight(ego: ActorState) -> tuple[np.ndarray, np.ndarray]:
-        """Ego headlight origin (front bumper, 0.7 m up) and beam direction (forward, 5° down)."""
-        m = ego.transform.matrix()
-        bb = ego.bounding_box
-        origin = m[:3, :3] @ np.array([bb.location.x + bb.extent.x, 0.0, 0.7]) + m[:3, 3]
-        a = math.radians(-5.0)
-        beam = m[:3, :3] @ np.array([math.cos(a), 0.0, math.sin(a)])
-        return origin, beam
+            return self.renderer.render([v for batch in batches for v in batch], tick.light, lights, centre)
+        return [frame for batch in batches if batch for frame in self.renderer.render(batch, tick.light, lights, centre)]
 
     @staticmethod
     def _point_velocity(ego: ActorState, point: np.ndarray) -> np.ndarray:

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -314,16 +314,31 @@ def box_size(box: dict) -> np.ndarray:
     return np.array([2.0 * ex, 2.0 * ey, 2.0 * ez])
 
 
+def _world2object(box: dict) -> Any:
+    """The entry's ``world2*`` matrix where it orients the box, else None.
+
+    A sign with a trigger volume takes ``rotation``, ``center`` and ``extent`` from the level bounding box its actor
+    was matched to, while ``world2sign`` is the actor's transform, which CARLA's sign actors (and ours: the landmark
+    turned 90°) hold at another yaw than their plates: the box is oriented by ``rotation`` there.
+    """
+    for key in _WORLD2OBJECT_KEYS:
+        if box.get(key) is not None:
+            if key == "world2sign" and box.get("trigger_volume_extent") is not None:
+                return None
+            return box[key]
+    return None
+
+
 def object_to_world(box: dict) -> np.ndarray:
-    """Object → CARLA-world 4×4 of a box entry: inverse(``world2*``) when present (fix 5), else its rotation.
+    """Object → CARLA-world 4×4 of a box entry: inverse(``world2*``) when present (fix 5), else its rotation
+    (always for trigger-volume signs, whose ``world2sign`` is the actor's pose, not the box's).
 
     The translation is the box ``center`` (the bounding-box centre in the world, not the actor origin).
     """
     m = None
-    for key in _WORLD2OBJECT_KEYS:
-        if box.get(key) is not None:
-            m = np.linalg.inv(np.asarray(box[key], dtype=np.float64))
-            break
+    world2object = _world2object(box)
+    if world2object is not None:
+        m = np.linalg.inv(np.asarray(world2object, dtype=np.float64))
     if m is None:
         pitch, roll, yaw = (float(v) for v in box.get("rotation", (0.0, 0.0, 0.0)))
         m = np.eye(4)
@@ -357,12 +372,10 @@ def rigid_inverse(m: np.ndarray) -> np.ndarray:
 def objects_to_world(boxes: Sequence[dict]) -> np.ndarray:
     """(M, 4, 4) object → CARLA-world poses of many box entries at once (same rules as :func:`object_to_world`)."""
     out = np.zeros((len(boxes), 4, 4))
-    have = [i for i, b in enumerate(boxes) if any(b.get(k) is not None for k in _WORLD2OBJECT_KEYS)]
+    matrices = [_world2object(b) for b in boxes]
+    have = [i for i, m in enumerate(matrices) if m is not None]
     if have:
-        stacked = np.array(
-            [next(boxes[i][k] for k in _WORLD2OBJECT_KEYS if boxes[i].get(k) is not None) for i in have], np.float64
-        )
-        out[have] = rigid_inverse(stacked)
+        out[have] = rigid_inverse(np.array([matrices[i] for i in have], np.float64))
     have_set = set(have)
     for i, b in enumerate(boxes):
         if i not in have_set:

@@ -283,3 +283,21 @@ def test_batched_boxes_equal_single_boxes() -> None:
     # rigid_inverse equals the general inverse on a rigid transform.
     m = Transform(Location(1, 2, 3), Rotation(pitch=10, yaw=20, roll=30)).matrix()
     assert coords.rigid_inverse(m) == pytest.approx(np.linalg.inv(m))
+
+
+def test_a_trigger_volume_sign_is_oriented_by_its_box_rotation_not_by_world2sign() -> None:
+    # A stop sign: its box (the matched level bbox) faces yaw 90°, its actor (world2sign) is turned to yaw 0°, as
+    # CARLA's sign actors and ours are (the landmark turned 90°). Ego at the origin, yaw 0: the box's yaw in the ego
+    # frame is 90° CARLA = −90° ISO (y flipped), not the actor's 0°.
+    sign = {"class": "traffic_sign", "type_id": "traffic.stop", "center": [10.0, 0.0, 2.0], "rotation": [0.0, 0.0, 90.0],
+            "extent": [0.05, 0.4, 0.4], "trigger_volume_extent": [1.0, 1.5, 1.0],
+            "world2sign": world2ego_at(10, 0, 0, 0)}  # fmt: skip
+    w2e = np.array(world2ego_at(0.0, 0.0, 0.0, 0.0))
+    assert coords.box_in_ego(sign, w2e, "iso")[6] == pytest.approx(-math.pi / 2)
+    batched, poses = coords.boxes_in_ego([sign], w2e, "iso")
+    assert batched[0, 6] == pytest.approx(-math.pi / 2)
+    assert poses[0, :3, 3] == pytest.approx([10.0, 0.0, 2.0])
+    # a prop without a trigger volume (a warning sign) keeps world2sign's orientation: actor yaw −20° ⇒ 20° ISO
+    prop = {"class": "traffic_sign", "type_id": "static.prop.warningconstruction", "center": [1, 2, 0],
+            "rotation": [0.0, 0.0, 70.0], "extent": [0.5, 0.5, 1.0], "world2sign": world2ego_at(1, 2, 0, -20)}
+    assert coords.box_in_ego(prop, w2e, "iso")[6] == pytest.approx(math.radians(20))

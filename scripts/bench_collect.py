@@ -252,10 +252,12 @@ def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTime
     return timer, state["frames"], result
 
 
-def _pipeline_worker_init(max_ticks: int, owner: int, log_level: int, reports: Any, pin: bool, workers: int) -> None:
+def _pipeline_worker_init(
+    max_ticks: int, owner: int, log_level: int, reports: Any, pin: bool, workers: int, gpu_slots: Any
+) -> None:
     from b2d_data.collection.backends import _worker_init
 
-    _worker_init(log_level, owner, reports, raster_threads(workers))  # what b2d-collect's route processes do
+    _worker_init(log_level, owner, reports, raster_threads(workers), gpu_slots)  # as b2d-collect's route processes
     _cap_ticks(max_ticks)
     if pin:  # experiment: one core per route process, so that every thread pool sizes itself to one core
         cores = sorted(os.sched_getaffinity(0))
@@ -281,7 +283,8 @@ def pipeline(
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
         workers, mp_context=context, initializer=_pipeline_worker_init,
-        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, reports, pin, workers),
+        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, reports, pin, workers,
+                  context.Value("i", 0)),
     ) as pool:  # fmt: skip
         futures = [pool.submit(job_module.run_route_job, t.route, t.town, config.out, config, t.seed) for t in tasks]
         wait_futures(futures)

@@ -31,7 +31,12 @@ from b2d_data.collection.job import (
     run_route_job,
     shutdown_encoders,
 )
-from b2d_data.collection.layout import raster_threads, single_thread_environment, single_thread_worker
+from b2d_data.collection.layout import (
+    raster_threads,
+    single_thread_environment,
+    single_thread_worker,
+    take_gpu_slot,
+)
 from b2d_data.collection.plan import CollectError, RouteTask
 from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
@@ -157,10 +162,14 @@ def _pool_task(job: Callable[..., JobResult], *args: Any) -> JobResult:
         _in_task = False
 
 
-def _worker_init(log_level: int, driver_pid: int, reports: Any, rasteriser_threads: int = 0) -> None:
+def _worker_init(
+    log_level: int, driver_pid: int, reports: Any, rasteriser_threads: int = 0, gpu_slots: Any = None
+) -> None:
     """Pool worker set-up: die with the driver (no orphan finishing a route after a kill), leave Ctrl-C to the
-    driver and stop cleanly on its SIGTERM, quiet logging, frame reports into the driver's queue."""
+    driver and stop cleanly on its SIGTERM, quiet logging, frame reports into the driver's queue, the next GPU slot
+    (``gpu_slots``: a shared counter) for its GL context."""
     exit_with_parent(driver_pid)
+    take_gpu_slot(gpu_slots)
     ignore_interrupts()
     single_thread_worker(rasteriser_threads)
     # An exit through the interpreter (not the default SIGTERM death) releases the worker's semaphores and shared
@@ -198,6 +207,8 @@ class ProcessPoolBackend:
         method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         self._context = multiprocessing.get_context(method)
         self._reports = self._context.Queue()
+        #: The next GPU slot a new worker takes (round robin over the machine's GPUs, replacement workers included).
+        self._gpu_slots = self._context.Value("i", 0)
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
@@ -206,7 +217,8 @@ class ProcessPoolBackend:
             self.capacity,
             mp_context=self._context,
             initializer=_worker_init,
-            initargs=(logging.getLogger().getEffectiveLevel(), os.getpid(), self._reports, raster_threads(self.capacity)),
+            initargs=(logging.getLogger().getEffectiveLevel(), os.getpid(), self._reports, raster_threads(self.capacity),
+                      self._gpu_slots),
         )
 
     def _drain_reports(self) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 #: Thread pools of the native libraries a route process uses, capped at one thread when several route processes
 #: share the cores: each pool sizes itself to every core of the machine, and dozens of spinning helper threads per
@@ -60,6 +61,23 @@ def auto_layout(cores: int | None = None, gpus: int | None = None) -> Layout:
     if gpus > 0:
         return Layout(workers=cores + cores // 4, encode_workers=0)
     return Layout(workers=min(cores, 4), encode_workers=0)
+
+
+#: Environment variable naming a route process's GPU slot (read by the renderer when it creates its GL context).
+GPU_SLOT_ENV = "B2D_GPU_SLOT"
+
+
+def take_gpu_slot(counter: Any) -> int | None:
+    """In a new route process: take the next slot of a shared counter (``multiprocessing.Value``) as its GPU slot,
+    so that a machine's route processes spread over all its GPUs; None (nothing set) without a counter or where
+    the user chose a device (``B2D_EGL_DEVICE``) or slot."""
+    if counter is None or "B2D_EGL_DEVICE" in os.environ or GPU_SLOT_ENV in os.environ:
+        return None
+    with counter.get_lock():
+        slot = int(counter.value)
+        counter.value = slot + 1
+    os.environ[GPU_SLOT_ENV] = str(slot)
+    return slot
 
 
 def single_thread_environment() -> None:

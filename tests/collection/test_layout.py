@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from b2d_data.collection.layout import Layout, auto_layout, raster_threads, single_thread_worker
+from b2d_data.collection.layout import Layout, auto_layout, raster_threads, single_thread_worker, take_gpu_slot
 
 
 def test_gpu_machine_runs_a_quarter_more_route_processes_than_cores() -> None:
@@ -41,3 +41,22 @@ def test_the_worker_sets_llvmpipe_threads_unless_the_user_did(monkeypatch: pytes
     monkeypatch.delenv("LP_NUM_THREADS")
     single_thread_worker()  # no count: llvmpipe's own default stays
     assert "LP_NUM_THREADS" not in os.environ
+
+
+def test_route_processes_take_gpu_slots_in_turn(monkeypatch: pytest.MonkeyPatch) -> None:
+    import multiprocessing
+
+    counter = multiprocessing.get_context("spawn").Value("i", 0)
+    monkeypatch.delenv("B2D_EGL_DEVICE", raising=False)
+    taken = []
+    for _ in range(3):  # three new route processes, each with a fresh environment
+        monkeypatch.delenv("B2D_GPU_SLOT", raising=False)
+        taken.append((take_gpu_slot(counter), os.environ["B2D_GPU_SLOT"]))
+    # slots 0, 1, 2: on a 2-GPU machine the renderer puts them on devices 0, 1, 0 (slot modulo the GPUs)
+    assert taken == [(0, "0"), (1, "1"), (2, "2")] and counter.value == 3
+    # a slot or a device the user set is kept, and the counter is left alone
+    assert take_gpu_slot(counter) is None and os.environ["B2D_GPU_SLOT"] == "2"
+    monkeypatch.delenv("B2D_GPU_SLOT")
+    monkeypatch.setenv("B2D_EGL_DEVICE", "1")
+    assert take_gpu_slot(counter) is None and "B2D_GPU_SLOT" not in os.environ and counter.value == 3
+    assert take_gpu_slot(None) is None

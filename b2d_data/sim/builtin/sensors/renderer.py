@@ -76,7 +76,9 @@ def _egl_context(index: int | None) -> moderngl.Context:
 def create_gl_context() -> moderngl.Context:
     """An EGL context on a hardware GPU when one is present, else on Mesa's software rasteriser.
 
-    ``B2D_EGL_DEVICE=<index>`` forces one EGL device.
+    ``B2D_EGL_DEVICE=<index>`` forces one EGL device. ``B2D_GPU_SLOT=<k>`` (set per route process by the collection's
+    pools) picks the hardware device k modulo their number (at most as many as ``CUDA_VISIBLE_DEVICES`` leaves), so
+    that a machine's route processes spread over all its GPUs; without it the first hardware device is taken.
     """
     # The NVIDIA driver spins a core while it waits for the GPU (glFinish, read-backs); sleeping instead frees that
     # core for the other route processes. Read when the driver loads, i.e. before the first context.
@@ -84,7 +86,9 @@ def create_gl_context() -> moderngl.Context:
     forced = os.environ.get("B2D_EGL_DEVICE")
     if forced is not None:
         return _egl_context(int(forced))
+    slot = os.environ.get("B2D_GPU_SLOT")
     fallback: moderngl.Context | None = None
+    hardware: list[int] = []
     for index in range(16):
         try:
             ctx = _egl_context(index)
@@ -95,14 +99,29 @@ def create_gl_context() -> moderngl.Context:
             continue
         renderer = ctx.info.get("GL_RENDERER", "").lower()
         if not any(name in renderer for name in _SOFTWARE_RENDERERS):
-            if fallback is not None:
-                fallback.release()
-            log.info("rendering on EGL device %d: %s", index, ctx.info.get("GL_RENDERER"))
-            return ctx
+            if slot is None:
+                if fallback is not None:
+                    fallback.release()
+                log.info("rendering on EGL device %d: %s", index, ctx.info.get("GL_RENDERER"))
+                return ctx
+            hardware.append(index)
+            ctx.release()
+            continue
         if fallback is None:
             fallback = ctx
         else:
             ctx.release()
+    if hardware:
+        if fallback is not None:
+            fallback.release()
+        from b2d_data.collection.layout import count_gpus  # the layout's GPU count (CUDA_VISIBLE_DEVICES)
+
+        visible = count_gpus()
+        usable = hardware[:visible] if visible > 0 else hardware
+        index = usable[int(slot or 0) % len(usable)]
+        ctx = _egl_context(index)
+        log.info("rendering on EGL device %d of %d (slot %s): %s", index, len(usable), slot, ctx.info.get("GL_RENDERER"))
+        return ctx
     if fallback is None:
         return _egl_context(None)
     log.info("rendering on software EGL: %s", fallback.info.get("GL_RENDERER"))

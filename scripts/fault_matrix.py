@@ -381,7 +381,8 @@ def case_same_seed(m: Matrix) -> CaseResult:
             differ.append(str(rel))
     got = min(len(clips(o)) for o in outs)
     ok = rcs == [0, 0] and got == 1 and a.name == b.name and files and not differ
-    return CaseResult(name, ok, f"{len(files) - len(differ)}/{len(files)} files identical", got, 1)
+    return CaseResult(name, ok, f"{len(files) - len(differ)}/{len(files)} files identical (annotations gunzipped)",
+                      got, 1)
 
 
 def case_verify(m: Matrix, clip: Path) -> CaseResult:
@@ -527,7 +528,8 @@ def case_bad_inputs(m: Matrix) -> list[CaseResult]:
         one_line = len(lines) == 1 and lines[0].startswith("b2d-collect: error:") and "Traceback" not in text
         escaped = [p.name for p in set(folder.rglob("*")) - before if p.is_file() and out not in p.parents]
         ok = rc == 2 and one_line and not escaped
-        results.append(CaseResult(case, ok, f"rc {rc}: {lines[-1][:90] if lines else ''}", clear_error=one_line))
+        said = (lines[-1] if lines else "").removeprefix("b2d-collect: error: ").replace(f"{folder}/", "")
+        results.append(CaseResult(case, ok, f"rc {rc}: {said[:100]}", clear_error=one_line))
     return results
 
 

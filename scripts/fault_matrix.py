@@ -250,7 +250,7 @@ def _realtime():
 def case_kill_worker(m: Matrix, name: str, n: int, when: str) -> CaseResult:
     """kill -9 of a worker: mid-route, the moment its clip is renamed into place, or once idle."""
     out = m.fresh(name)
-    uneven = m.routes.with_name("uneven_accident.xml") if when == "idle" else None
+    uneven = m.routes.with_name("uneven_accident.xml") if when.startswith("idle") else None
     proc = m.start(m.args(out, n, routes=uneven), m.work / f"{name}.log")
     seen: dict[str, int] = {}  # clip name -> pid of the worker writing it
 
@@ -263,13 +263,21 @@ def case_kill_worker(m: Matrix, name: str, n: int, when: str) -> CaseResult:
         done = [c.name for c in clips(out) if c.name in seen]
         if when == "after-rename" and done:
             return seen[done[0]]
-        if when == "idle" and done and writing(out):  # its route is over, the other worker's still runs
+        if when.startswith("idle") and done and writing(out):  # its route is over, the other worker's still runs
             time.sleep(0.3)  # back in the pool's queue
             return seen[done[0]]
         return None
 
     try:
-        if when == "after-rename":  # the one worker writing the one clip, killed as its rename lands
+        if when == "idle-as-other-finishes":  # the idle worker, killed as the busy one renames its clip
+            idle = wait_for(proc, lambda: moment() and [c.name for c in clips(out)])
+            renames = _Renames(out)
+            with _realtime():
+                pid = seen[idle[0]] if idle and renames.wait(120) else None
+                if pid:
+                    os.kill(pid, signal.SIGKILL)
+            renames.close()
+        elif when == "after-rename":  # the one worker writing the one clip, killed as its rename lands
             temp = wait_for(proc, lambda: writing(out, 1))
             renames = _Renames(out)
             with _realtime():  # woken ahead of the busy workers: the result is on its way within a millisecond
@@ -282,7 +290,7 @@ def case_kill_worker(m: Matrix, name: str, n: int, when: str) -> CaseResult:
         if not pid:
             stop(proc)
             return CaseResult(name, False, f"ended (rc {proc.poll()}) before the kill", len(clips(out)), n)
-        if when != "after-rename":
+        if when in ("mid-route", "idle"):
             os.kill(pid, signal.SIGKILL)
         try:
             rc = proc.wait(timeout=90)  # the lost route run again: ~20 s
@@ -566,6 +574,8 @@ def run_matrix(work: Path, only: str | None = None) -> list[CaseResult]:
         ("kill-9-worker-mid-route", lambda: case_kill_worker(m, "kill-9-worker-mid-route", 2, "mid-route")),
         ("kill-9-worker-after-rename", lambda: case_kill_worker(m, "kill-9-worker-after-rename", 1, "after-rename")),
         ("kill-9-idle-worker", lambda: case_kill_worker(m, "kill-9-idle-worker", 2, "idle")),
+        ("kill-9-idle-worker-as-other-ends", lambda: case_kill_worker(m, "kill-9-idle-worker-as-other-ends", 2,
+                                                                      "idle-as-other-finishes")),
         ("disk-full-then-resume", lambda: case_disk_full(m)),
         ("sigint-process-group", lambda: case_signal(m, "sigint-process-group", group_sigint=True)),
         ("sigterm-driver", lambda: case_signal(m, "sigterm-driver", group_sigint=False)),

@@ -5,8 +5,9 @@ clips on disk vs asked, whether the error was clear) and exits 1 if any case mis
 
 Every collection case is a real ``b2d-collect`` process (signals, kill -9 of the driver or of a worker, a tmpfs
 that fills up) on three generated Accident routes cut to 22 m (the cut of ``tests/collection/test_collect.py``),
-160x90 cameras, so a route takes seconds. Everything lives in one temporary folder, removed at the end. ~5 minutes
-on the 2-core machine.
+160x90 cameras, so a route takes seconds. Everything lives in one temporary folder, removed at the end. About 3
+minutes on the 2-core machine (plus 90 s per hung driver). Moments that polling misses (a clip's rename) are caught
+with inotify from a real-time watcher, which needs root (as the tmpfs of the full-disk case does).
 """
 
 from __future__ import annotations
@@ -248,7 +249,8 @@ def _realtime():
 
 
 def case_kill_worker(m: Matrix, name: str, n: int, when: str) -> CaseResult:
-    """kill -9 of a worker: mid-route, the moment its clip is renamed into place, or once idle."""
+    """kill -9 of a worker: mid-route, the moment its clip is renamed into place, once idle, or once idle at the
+    moment the busy worker renames its clip."""
     out = m.fresh(name)
     uneven = m.routes.with_name("uneven_accident.xml") if when.startswith("idle") else None
     proc = m.start(m.args(out, n, routes=uneven), m.work / f"{name}.log")

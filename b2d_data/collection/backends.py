@@ -42,6 +42,8 @@ from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
 
 log = logging.getLogger(__name__)
 
+#: Seconds idle workers get to read their stop sentinel at close.
+IDLE_GRACE = 10.0
 #: Seconds an interrupted collection gives its workers to drop their routes and exit cleanly before killing them.
 ABANDON_GRACE = 15.0
 
@@ -279,6 +281,13 @@ class ProcessPoolBackend:
         """Shut the pool down; queued tasks are cancelled, running ones awaited unless ``abandon`` (then killed)."""
         if abandon:
             self._abandon()
+        elif not self._futures:
+            # Nothing runs: a worker killed while idle may have died holding the call queue's lock, and the others
+            # would wait on that lock for ever instead of reading their stop sentinel (the pool need not have
+            # noticed the death); those still alive after a grace are stopped (an idle worker exits on SIGTERM).
+            processes = _processes(self._pool)
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            _join_or_stop(processes, IDLE_GRACE)
         else:
             self._pool.shutdown(wait=True, cancel_futures=True)
         # A broken pool's manager thread waits for its workers, and the interpreter's exit for that thread.
@@ -310,6 +319,20 @@ def _join_or_kill(processes: list[Any], grace: float) -> None:
             log.warning("worker %d did not stop within %.0f s; killing it", process.pid, grace)
             process.kill()
             process.join(timeout=5.0)
+
+
+def _join_or_stop(processes: list[Any], grace: float) -> None:
+    """Wait up to ``grace`` seconds for idle workers to exit; stop the late ones (SIGTERM, then kill)."""
+    deadline = time.monotonic() + grace
+    for process in processes:
+        process.join(timeout=max(deadline - time.monotonic(), 0.0))
+    late = [p for p in processes if p.is_alive()]
+    if late:
+        log.warning("%d idle worker(s) did not exit within %.0f s (a sibling died holding the pool's queue); "
+                    "stopping them", len(late), grace)  # fmt: skip
+        for process in late:
+            process.terminate()
+        _join_or_kill(late, ABANDON_GRACE)
 
 
 def make_backend(out: Path, config: CollectConfig, on_frames: FrameSink | None = None) -> Backend:

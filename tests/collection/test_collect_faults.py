@@ -386,3 +386,24 @@ def test_a_temporary_folder_too_deep_for_the_fork_server_socket_is_left_alone(tm
     monkeypatch.setenv("TMPDIR", str(deep))
     with temp_dir.private_temp_dir() as folder:
         assert folder == deep and os.environ["TMPDIR"] == str(deep) and not list(deep.iterdir())
+
+
+def _wait_forever() -> None:
+    time.sleep(3600)
+
+
+def test_idle_workers_that_do_not_exit_at_close_are_stopped_after_the_grace():
+    # A worker blocked on the pool's call-queue lock (its sibling was killed holding it) never reads its stop
+    # sentinel: close() gives idle workers IDLE_GRACE, then SIGTERMs them. Here a stand-in that just waits, with a
+    # 0.5 s grace: it must be gone after ≥ 0.5 s and well before ABANDON_GRACE (it dies on the first SIGTERM).
+    import multiprocessing
+
+    from b2d_data.collection.backends import _join_or_stop
+
+    process = multiprocessing.get_context("spawn").Process(target=_wait_forever)
+    process.start()
+    t0 = time.monotonic()
+    _join_or_stop([process], 0.5)
+    took = time.monotonic() - t0
+    assert not process.is_alive() and process.exitcode == -signal.SIGTERM
+    assert 0.5 <= took < 5.0

@@ -377,7 +377,10 @@ class Expert:
         ahead = route.points[index : index + cfg.points(cfg.flow_hold_range), :2]
         if ahead.shape[0] == 0:
             return None
-        lanes = np.concatenate([p for p in paths if p.shape[0]], axis=0)
+        known = [p for p in paths if p.shape[0]]
+        if not known:  # cars at the ends of their paths
+            return None
+        lanes = np.concatenate(known, axis=0)
         near = np.min(np.hypot(ahead[:, None, 0] - lanes[None, :, 0], ahead[:, None, 1] - lanes[None, :, 1]), axis=1)
         # the route's point where the ego's front would stand when its centre comes that close
         clearance = ego.bounding_box.extent.y + FLOW_CAR_HALF_WIDTH + cfg.flow_hold_margin

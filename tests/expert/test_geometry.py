@@ -527,3 +527,6 @@ def test_a_flow_joining_the_route_holds_the_ego_short_of_its_path(make_route, ma
     # from x = 7 the ego's front is already within reach of the car: 2.1 - 2.4 < 0, no hold (it brakes as before)
     route.index = 70
     assert Expert._conflict_hold(me, ego, route, [crossing]) is None
+    # cars at the ends of their paths (nothing ahead of them): no hold, and no error
+    route.index = 0
+    assert Expert._conflict_hold(me, ego, route, [np.zeros((0, 2))]) is None

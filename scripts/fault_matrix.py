@@ -296,10 +296,8 @@ def case_kill_worker(m: Matrix, name: str, n: int, when: str) -> CaseResult:
             renames.close()
         else:
             pid = wait_for(proc, moment, step=0.005)
+            pid = pid if pid and _kill(pid) else None
         if not pid:
-            stop(proc)
-            return CaseResult(name, False, f"ended (rc {proc.poll()}) before the kill", len(clips(out)), n)
-        if when in ("mid-route", "idle") and not _kill(pid):
             stop(proc)
             return CaseResult(name, False, f"ended (rc {proc.poll()}) before the kill", len(clips(out)), n)
         try:

@@ -47,6 +47,9 @@ def lidar_directions(spec: LidarSpec, azimuth_steps: int) -> np.ndarray:
 
 def cast_from(caster: RayCaster, sensor_to_world: np.ndarray, directions: np.ndarray, max_range: float) -> RayHits:
     """Cast sensor-frame unit ``directions`` from a sensor pose (4×4 sensor → world)."""
+    turned = getattr(caster, "cast_turned", None)
+    if turned is not None:  # the GPU caster turns the rays itself (no per-sweep copy of them on the CPU)
+        return turned(sensor_to_world, directions, max_range)
     pose = np.asarray(sensor_to_world, np.float64)
     world_dirs = (directions @ pose[:3, :3].T.astype(np.float32)).astype(np.float32)
     origin = pose[:3, 3].astype(np.float32)

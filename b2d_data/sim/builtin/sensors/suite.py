@@ -1,8 +1,9 @@
 """The Bench2Drive sensor rig of the builtin simulator: one capture per tick from a :class:`Snapshot`.
 
 The static scene (map mesh, then traffic-light and sign fixtures once the snapshot shows them) is uploaded to the
-renderer and to Embree once; each capture meshes the actors, renders the cameras, casts the LiDAR and radar rays
-into the same triangles, and reads IMU, GNSS and speedometer from the ego state. :class:`SensorScene` is that scene
+renderer and to the ray caster (Embree, or on a hardware GPU the compute shader of ``gpu_raycast.py``) once; each
+capture meshes the actors, renders the cameras, casts the LiDAR and radar rays into the same triangles, and reads
+IMU, GNSS and speedometer from the ego state. :class:`SensorScene` is that scene
 machinery, shared with the agent rigs of ``mounted.py``.
 """
 
@@ -73,8 +74,9 @@ def town_scene(layout: RoadLayout) -> StaticScene:
 class CaptureTimings:
     """Seconds spent in each part of the last capture.
 
-    LiDAR and radar run on a worker thread while the cameras render, so ``wall`` (the whole capture) is less than
-    the sum of the parts when both overlap.
+    With Embree, LiDAR and radar run on a worker thread while the cameras render, so ``wall`` (the whole capture) is
+    less than the sum of the parts when both overlap. With the GPU caster they are the host's part only: starting
+    the casts and turning their hits into points and detections.
     """
 
     actors: float = 0.0

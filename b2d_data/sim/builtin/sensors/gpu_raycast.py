@@ -56,10 +56,10 @@ float box_entry(vec4 lo, vec4 hi, vec3 o, vec3 inv, float limit) {
     // Slab test; returns the entry distance, or a value above ``limit`` when the ray misses the box within it.
     vec3 a = (lo.xyz - o) * inv;
     vec3 b = (hi.xyz - o) * inv;
-    vec3 near = min(a, b);
-    vec3 far = max(a, b);
-    float t0 = max(max(near.x, near.y), max(near.z, 0.0));
-    float t1 = min(min(far.x, far.y), min(far.z, limit));
+    vec3 enter = min(a, b);
+    vec3 leave = max(a, b);
+    float t0 = max(max(enter.x, enter.y), max(enter.z, 0.0));
+    float t1 = min(min(leave.x, leave.y), min(leave.z, limit));
     return t0 <= t1 ? t0 : 3.0e38;
 }
 

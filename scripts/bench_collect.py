@@ -196,6 +196,10 @@ def instrument(timer: StageTimer, warmup: int) -> dict[str, int]:
     timer.patch(suite.SensorSuite, "capture", "sensors: actor meshes, ray scene, IMU/GNSS")
     timer.patch(lidar.Lidar, "scan", "sensors: LiDAR rays")
     timer.patch(radar.Radar, "scan", "sensors: radar rays")
+    # On a hardware GPU the rays go to the GPU caster instead (RigConfig.gpu_rays): started before the draws,
+    # collected (hits turned into points and detections) after the read-back.
+    timer.patch(suite.SensorSuite, "_submit_rays", "sensors: LiDAR + radar rays, GPU submit")
+    timer.patch(suite.SensorSuite, "_collect_rays", "sensors: LiDAR + radar rays, GPU collect")
     timer.patch(renderer.Renderer, "render", "render: colour planes + read-back")
     draw = timer.wrap("render: draw calls (CPU)", renderer.Renderer._draw)
     gpu_wait = timer.wrap("render: GPU wait (glFinish)", lambda ctx: ctx.finish())

@@ -11,9 +11,8 @@ import io
 import json
 import os
 import zlib
-from pathlib import Path
 
-from b2d_data.codecs._source import Source, read_source
+from b2d_data.codecs._source import Source, read_source, write_bytes
 from b2d_data.format.anno_schema import check_anno
 from b2d_data.format.errors import B2DFormatError
 
@@ -52,15 +51,17 @@ def encode_anno(
     bio = io.BytesIO()
     with gzip.GzipFile(filename=file_name, mode="wb", fileobj=bio, compresslevel=9) as f:
         f.write(text.encode("utf-8"))
+        # The text wrapper of gzip.open flushes the gzip file when it closes (a zlib sync flush) before the gzip
+        # file ends the stream: the same here, so that the bytes are those of gzip.open (mtime aside).
+        f.flush()
     return bio.getvalue()
 
 
 def write_anno(path: str | os.PathLike[str], anno: dict, *, strict: bool = False, frame: str | None = None) -> int:
     """Write ``anno/NNNNN.json.gz`` exactly as the collector does; returns the number of bytes written."""
-    text = anno_text(anno, strict=strict, frame=frame or os.fspath(path))
-    with gzip.open(path, "wt", encoding="utf-8") as f:
-        f.write(text)
-    return Path(path).stat().st_size
+    # Encoded in memory and written in one go: the bytes of gzip.open(path, "wt") with three file system calls.
+    data = encode_anno(anno, file_name=os.path.basename(os.fspath(path)), strict=strict, frame=frame or os.fspath(path))
+    return write_bytes(path, data)
 
 
 def gunzip_capped(data: bytes | memoryview, limit: int) -> bytes:

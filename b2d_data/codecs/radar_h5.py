@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import io
+import itertools
 import logging
 import os
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from b2d_data.codecs._source import Source, is_data, read_source, source_name
+from b2d_data.codecs._source import Source, is_data, read_source, source_name, write_bytes
 from b2d_data.format.errors import B2DFormatError
 from b2d_data.format.rig import RADARS_V0
 
@@ -40,24 +42,29 @@ def _prepared(radar: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
-def _write(target: str | os.PathLike[str] | io.BytesIO, radar: Mapping[str, np.ndarray]) -> None:
-    prepared = _prepared(radar)
-    with h5py.File(target, "w") as f:
-        for key, arr in prepared.items():
-            f.create_dataset(key, data=arr, compression="gzip", compression_opts=9, chunks=True)
+#: Names of the in-memory HDF5 files: HDF5 looks for the name once (absent, so nothing on disk is read or changed);
+#: each file gets its own, since HDF5 shares an open file by name between threads.
+_IN_MEMORY_NAMES = itertools.count()
 
 
 def encode_radar(radar: Mapping[str, np.ndarray]) -> bytes:
-    """Encode a dict of (N, 4) detections keyed by dataset name as h5 bytes; absent radars are stored empty."""
-    bio = io.BytesIO()
-    _write(bio, radar)
-    return bio.getvalue()
+    """Encode a dict of (N, 4) detections keyed by dataset name as h5 bytes; absent radars are stored empty.
+
+    Built by HDF5's in-memory driver: the bytes h5py writes to a file path (the file-object driver of h5py lays the
+    file out differently), in one buffer instead of a dozen writes to the file.
+    """
+    prepared = _prepared(radar)
+    name = f"/nonexistent-b2d-data/{os.getpid()}-{threading.get_ident()}-{next(_IN_MEMORY_NAMES)}.h5"
+    with h5py.File(name, "w", driver="core", backing_store=False) as f:
+        for key, arr in prepared.items():
+            f.create_dataset(key, data=arr, compression="gzip", compression_opts=9, chunks=True)
+        f.flush()
+        return bytes(f.id.get_file_image())
 
 
 def write_radar(path: str | os.PathLike[str], radar: Mapping[str, np.ndarray]) -> int:
     """Write ``radar/NNNNN.h5``; returns the number of bytes written."""
-    _write(path, radar)
-    return Path(path).stat().st_size
+    return write_bytes(path, encode_radar(radar))
 
 
 def read_radar(

@@ -288,6 +288,9 @@ class RigConfig:
     jpeg_planes: str = "off"
     lidar: bool = True
     lidar_azimuth_steps: int = 1000  # 64 channels × this many rays per sweep (600k pts/s at 10 Hz ≈ 940)
+    # LiDAR and radar rays cast by a compute shader (gpu_raycast.py) instead of Embree: "off", "on", or "gpu"
+    # (hardware GPU only; on llvmpipe the shader would run on the CPU, slower than Embree).
+    gpu_rays: str = "gpu"
     radar: bool = True
     radar_v004_mounts: bool = False
 

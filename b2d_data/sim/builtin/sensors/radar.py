@@ -17,7 +17,7 @@ import numpy as np
 
 from b2d_data.format.rig import RadarSpec
 from b2d_data.sim.api import FIXED_DELTA_SECONDS
-from b2d_data.sim.builtin.sensors.raycast import RayCaster
+from b2d_data.sim.builtin.sensors.raycast import RayCaster, RayHits
 
 
 @dataclass(frozen=True)
@@ -57,12 +57,21 @@ class Radar:
         actor_velocities: Mapping[int, np.ndarray],
     ) -> np.ndarray:
         """(N, 4) float32 detections [depth, altitude, azimuth, velocity] of this tick (seeded by seed and frame)."""
+        local, world = self.rays(pose, frame)
+        origin = np.asarray(pose.sensor_to_world, np.float64)[:3, 3]
+        hits = caster.cast(origin[None, :], world, self.spec.range_m)
+        return self.detections(local, world, hits, pose, actor_velocities)
+
+    def rays(self, pose: RadarPose, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """This tick's ray directions in the radar frame and in the world (seeded by seed and frame)."""
         rng = np.random.default_rng([self.seed, frame, 1009 + self.index])
         local = radar_ray_directions(self.spec, rng, self.rays_per_tick)
         rot = np.asarray(pose.sensor_to_world, np.float64)[:3, :3]
-        world = local @ rot.T
-        origin = np.asarray(pose.sensor_to_world, np.float64)[:3, 3]
-        hits = caster.cast(origin[None, :], world, self.spec.range_m)
+        return local, local @ rot.T
+
+    def detections(self, local: np.ndarray, world: np.ndarray, hits: RayHits, pose: RadarPose,
+                   actor_velocities: Mapping[int, np.ndarray]) -> np.ndarray:  # fmt: skip
+        """(N, 4) float32 detections of the hits of :meth:`rays` (cast from the radar's position)."""
         keep = hits.hit
         if not keep.any():
             return np.zeros((0, 4), np.float32)

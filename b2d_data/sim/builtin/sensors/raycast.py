@@ -92,3 +92,8 @@ class RayCaster:
             ids[rows] = layer.actor_ids[prim]
             hit[rows] = True
         return RayHits(hit, t, tags, ids)
+
+    def close(self) -> None:
+        """Drop the scenes (the GPU caster's counterpart releases its context)."""
+        self._static = _Layer(TriangleMesh.empty())
+        self._dynamic = _Layer(TriangleMesh.empty())

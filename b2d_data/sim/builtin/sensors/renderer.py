@@ -57,6 +57,11 @@ UE_TO_CV = np.array([[0, 1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0], [0, 0, 0, 1]], d
 
 _SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software")
 
+
+def is_hardware(ctx: moderngl.Context) -> bool:
+    """Whether a GL context runs on a hardware GPU (not on one of Mesa's software rasterisers)."""
+    return not any(name in ctx.info.get("GL_RENDERER", "").lower() for name in _SOFTWARE_RENDERERS)
+
 #: When the renderer hands colour over as JPEG planes: never, always, or on a hardware GPU only.
 JpegPlanes = Literal["off", "on", "gpu"]
 
@@ -534,7 +539,7 @@ class Renderer:
         self.far = far
         self.tile_size = tile_size
         self.gl_renderer = self.ctx.info.get("GL_RENDERER", "")
-        self.hardware = not any(name in self.gl_renderer.lower() for name in _SOFTWARE_RENDERERS)
+        self.hardware = is_hardware(self.ctx)
         if jpeg_planes not in ("off", "on", "gpu"):
             raise ValueError(f"jpeg_planes must be 'off', 'on' or 'gpu', got {jpeg_planes!r}")
         # Colour handed over as the JPEG's 4:2:0 planes (``CameraFrame.jpeg_planes``, no RGB) where the size is even.

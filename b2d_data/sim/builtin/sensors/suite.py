@@ -1,8 +1,9 @@
 """The Bench2Drive sensor rig of the builtin simulator: one capture per tick from a :class:`Snapshot`.
 
 The static scene (map mesh, then traffic-light and sign fixtures once the snapshot shows them) is uploaded to the
-renderer and to Embree once; each capture meshes the actors, renders the cameras, casts the LiDAR and radar rays
-into the same triangles, and reads IMU, GNSS and speedometer from the ego state. :class:`SensorScene` is that scene
+renderer and to the ray caster (Embree, or on a hardware GPU the compute shader of ``gpu_raycast.py``) once; each
+capture meshes the actors, renders the cameras, casts the LiDAR and radar rays into the same triangles, and reads
+IMU, GNSS and speedometer from the ego state. :class:`SensorScene` is that scene
 machinery, shared with the agent rigs of ``mounted.py``.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import pickle
 import time
 from collections import OrderedDict
@@ -37,7 +39,8 @@ from b2d_data.sim.builtin.sensors.lidar import Lidar, LidarSweep
 from b2d_data.sim.builtin.sensors.lighting import Lighting
 from b2d_data.sim.builtin.sensors.map_mesh import RoadLayout, StaticScene, build_static_scene, layout_from_map
 from b2d_data.sim.builtin.sensors.radar import Radar, RadarPose
-from b2d_data.sim.builtin.sensors.raycast import RayCaster
+from b2d_data.sim.builtin.sensors.gpu_raycast import GpuRayCaster, PendingCast, make_ray_caster
+from b2d_data.sim.builtin.sensors.raycast import RayCaster, RayHits
 from b2d_data.sim.builtin.sensors.renderer import CameraView, Renderer
 from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh, merge
 from b2d_data.sim.builtin.sensors.vehicle_lights import SpotLights, vehicle_lights
@@ -71,8 +74,9 @@ def town_scene(layout: RoadLayout) -> StaticScene:
 class CaptureTimings:
     """Seconds spent in each part of the last capture.
 
-    LiDAR and radar run on a worker thread while the cameras render, so ``wall`` (the whole capture) is less than
-    the sum of the parts when both overlap.
+    With Embree, LiDAR and radar run on a worker thread while the cameras render, so ``wall`` (the whole capture) is
+    less than the sum of the parts when both overlap. With the GPU caster they are the host's part only: starting
+    the casts and turning their hits into points and detections.
     """
 
     actors: float = 0.0
@@ -101,6 +105,35 @@ class TickScene:
     vehicle_lights: SpotLights = SpotLights.empty()
 
 
+@dataclass
+class _RadarRays:
+    """One radar's rays of a tick: its key, the radar, its pose and the directions (radar frame and world)."""
+
+    key: str
+    radar: Radar
+    pose: RadarPose
+    local: np.ndarray
+    world: np.ndarray
+
+
+@dataclass
+class _RadarsInFlight:
+    """The radar casts of a tick submitted to the GPU caster (keys in the rig's order)."""
+
+    keys: list[str]
+    casts: list[tuple[PendingCast, list[_RadarRays]]]
+
+
+@dataclass
+class _RaysInFlight:
+    """A capture's LiDAR and radar casts on the GPU, and the host seconds spent starting each."""
+
+    lidar: PendingCast | None
+    radars: _RadarsInFlight | None
+    lidar_s: float
+    radar_s: float
+
+
 class SensorScene:
     """The town as a rig's sensors see it: the static scene in the renderer and the ray caster (either optional),
     traffic-light and sign fixtures, lamps, actor meshes, lighting and the vehicles' lamps.
@@ -111,15 +144,16 @@ class SensorScene:
 
     scene: StaticScene
     renderer: Renderer | None
-    caster: RayCaster | None
+    caster: RayCaster | GpuRayCaster | None
 
-    def _setup_scene(self, scene: StaticScene, renderer: Renderer | None, rays: bool) -> None:
+    def _setup_scene(self, scene: StaticScene, renderer: Renderer | None, rays: bool, gpu_rays: str = "off") -> None:
         self.scene = scene
         self.renderer = renderer
         if self.renderer is not None and len(scene.lamps):
             self.renderer.set_lightmap(*scene.lightmap())
-        # Building Embree's scenes costs time per tick: a rig without LiDAR or radar has no caster.
-        self.caster = RayCaster() if rays else None
+        # Building Embree's scenes costs time per tick: a rig without LiDAR or radar has no caster. With ``gpu_rays``
+        # the rays are cast by a compute shader in the renderer's context: the same hits for a fraction of the CPU.
+        self.caster = make_ray_caster(gpu_rays, renderer.ctx if renderer is not None else None) if rays else None
         self.actor_meshes = ActorMeshBuilder()
         self.fixtures: list[Fixture] = []
         self._fixture_key: tuple | None = None
@@ -212,9 +246,43 @@ class SensorScene:
             out[key] = radar.scan(self.caster, own, tick.snapshot.frame, velocities)
         return out
 
+    def _submit_radars(self, tick: TickScene, radars: list[tuple[str, np.ndarray, Radar]]) -> _RadarsInFlight:
+        """Start the rays of every (key, sensor → world, radar) on the GPU caster: one cast per range, the radars'
+        rays one after the other, each from its radar (the rays of :meth:`_scan_radars`)."""
+        assert isinstance(self.caster, GpuRayCaster)
+        flight = _RadarsInFlight([key for key, _, _ in radars], [])
+        groups: dict[float, list[_RadarRays]] = {}
+        for key, pose, radar in radars:
+            own = RadarPose(pose, self._point_velocity(tick.ego, pose[:3, 3]))
+            local, world = radar.rays(own, tick.snapshot.frame)
+            groups.setdefault(radar.spec.range_m, []).append(_RadarRays(key, radar, own, local, world))
+        for range_m, group in groups.items():
+            origins = np.concatenate([np.broadcast_to(r.pose.sensor_to_world[:3, 3], r.world.shape) for r in group])
+            directions = np.concatenate([r.world for r in group])
+            flight.casts.append((self.caster.submit(origins, directions, range_m), group))
+        return flight
+
+    def _collect_radars(self, tick: TickScene, flight: _RadarsInFlight) -> dict[str, np.ndarray]:
+        """The detections of :meth:`_submit_radars`' casts, by key in the order they were given."""
+        assert isinstance(self.caster, GpuRayCaster)
+        velocities = {a.id: a.velocity.to_array() for a in tick.snapshot.actors.values()}
+        out: dict[str, np.ndarray] = {}
+        for pending, group in flight.casts:
+            hits = self.caster.collect(pending)
+            start = 0
+            for r in group:
+                rows = slice(start, start + len(r.world))
+                start = rows.stop
+                part = RayHits(hits.hit[rows], hits.t[rows], hits.tags[rows], hits.actor_ids[rows])
+                out[r.key] = r.radar.detections(r.local, r.world, part, r.pose, velocities)
+        return {key: out[key] for key in flight.keys}
+
     def close(self) -> None:
-        """Release the GL context and the ray-casting thread."""
+        """Release the GL contexts and the ray-casting thread."""
         self._pool.shutdown(wait=True)
+        if self.caster is not None:
+            self.caster.close()
+            self.caster = None
         if self.renderer is not None:
             self.renderer.close()
             self.renderer = None
@@ -250,7 +318,9 @@ class SensorSuite(SensorScene):
         self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
         renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes)  # type: ignore[arg-type]
                     if self._camera_specs else None)  # fmt: skip
-        self._setup_scene(scene, renderer, rays=config.lidar or config.radar)
+        # B2D_GPU_RAYS=off|on|gpu overrides the config (A/B measurements of a collection without code changes).
+        gpu_rays = os.environ.get("B2D_GPU_RAYS", config.gpu_rays)
+        self._setup_scene(scene, renderer, rays=config.lidar or config.radar, gpu_rays=gpu_rays)
         self.lidar = Lidar(LIDAR, config.lidar_azimuth_steps)
         specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
         self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
@@ -281,15 +351,44 @@ class SensorSuite(SensorScene):
             radar = self._scan_radars(tick, [(r.spec.dataset, poses[r.spec.sensor_id], r) for r in self.radars])
         return sweep, radar, t1 - t0, time.perf_counter() - t1
 
+    def _submit_rays(self, tick: TickScene, poses: dict[str, np.ndarray]) -> _RaysInFlight:
+        """Start the LiDAR sweep and the radar rays on the GPU caster (before the cameras are drawn)."""
+        assert isinstance(self.caster, GpuRayCaster)
+        t0 = time.perf_counter()
+        lidar = (self.caster.submit_turned(poses[LIDAR.sensor_id], self.lidar.directions, self.lidar.spec.range_m)
+                 if self.config.lidar else None)  # fmt: skip
+        t1 = time.perf_counter()
+        radars = None
+        if self.config.radar:
+            radars = self._submit_radars(tick, [(r.spec.dataset, poses[r.spec.sensor_id], r) for r in self.radars])
+        return _RaysInFlight(lidar, radars, t1 - t0, time.perf_counter() - t1)
+
+    def _collect_rays(self, tick: TickScene, flight: _RaysInFlight):
+        """The LiDAR sweep and radar detections of :meth:`_submit_rays` (what :meth:`_cast_rays` returns)."""
+        assert isinstance(self.caster, GpuRayCaster)
+        t0 = time.perf_counter()
+        if flight.lidar is not None:
+            sweep = self.lidar.sweep_of(self.caster.collect(flight.lidar))
+        else:
+            sweep = LidarSweep(np.zeros((0, 3), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
+        t1 = time.perf_counter()
+        radar = self._collect_radars(tick, flight.radars) if flight.radars is not None else {}
+        return sweep, radar, flight.lidar_s + t1 - t0, flight.radar_s + time.perf_counter() - t1
+
     def capture(self, snapshot: Snapshot, ego_id: int) -> SensorData:
         """Every sensor of the rig at this snapshot."""
         t0 = time.perf_counter()
         tick = self._prepare(snapshot, ego_id)
         poses = self.sensor_poses(tick.ego)
-        # Embree releases the GIL: the rays are cast on a worker thread while the cameras render here.
-        rays = self._pool.submit(self._cast_rays, tick, poses)
+        timings = CaptureTimings(actors=time.perf_counter() - t0)
+        flight, rays = None, None
+        if isinstance(self.caster, GpuRayCaster):
+            # Queued ahead of the cameras in the renderer's context: done by the time their read-back returns.
+            flight = self._submit_rays(tick, poses)
+        else:
+            # Embree releases the GIL: the rays are cast on a worker thread while the cameras render here.
+            rays = self._pool.submit(self._cast_rays, tick, poses)
         t1 = time.perf_counter()
-        timings = CaptureTimings(actors=t1 - t0)
 
         cameras: dict[str, CameraFrame] = {}
         try:
@@ -298,7 +397,11 @@ class SensorSuite(SensorScene):
                 timings.cameras = time.perf_counter() - t1
         finally:
             # Never leave the worker running into the next capture, even when rendering failed.
-            sweep, radar, timings.lidar, timings.radar = rays.result()
+            if flight is not None:
+                sweep, radar, timings.lidar, timings.radar = self._collect_rays(tick, flight)
+            else:
+                assert rays is not None
+                sweep, radar, timings.lidar, timings.radar = rays.result()
         t3 = time.perf_counter()
         imu, gnss, speed = self.imu.read(tick.ego, snapshot.frame, self._geolocate)
         timings.imu_gnss = time.perf_counter() - t3

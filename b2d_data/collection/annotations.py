@@ -34,6 +34,7 @@ from b2d_data.sim.api import (
     TrafficSignInfo,
     VehicleControl,
 )
+from b2d_data.sim.light_state import carla_str
 
 #: Objects farther than this (2-D, from the ego) are not annotated (tools/utils.py DIS_*_SAVE).
 CAPTURE_RADIUS = 100.0
@@ -139,7 +140,7 @@ def _actor_values(world_map: Map, ego: ActorState, actor: ActorState) -> dict:
         "distance": _distance(actor.location, ego.location),
         "speed": float(actor.forward_speed()),
         "brake": _brake(actor),
-        "light_state": actor.light_state,
+        "light_state": carla_str(actor.light_state),
         "road_id": road_id,
         "lane_id": lane_id,
         "section_id": section_id,

@@ -94,7 +94,7 @@ class ActorState:
     ``bounding_box`` has CARLA's semantics: centre in the actor frame and **half** extents.
     ``angular_velocity`` is in deg/s (CARLA's actor API); ``acceleration`` in m/s², world frame.
     ``control`` is the last applied control (the expert forecasts other vehicles from it).
-    ``light_state`` is the vehicle light state name (``NONE``, ``Special1`` for sirens, ...).
+    ``light_state`` is the vehicle light state name (``NONE``, ``Special1|Special2`` for sirens, ...; ``sim.light_state``).
     ``open_doors`` lists the doors that are open. ``is_static``: physics off / parked prop.
     """
 
@@ -467,7 +467,7 @@ class Simulator(Protocol):
         ...
 
     def set_light_state(self, actor_id: int, light_state: str) -> None:
-        """Set a vehicle's light state name (``Special1`` turns sirens on)."""
+        """Set a vehicle's light state name (``sim.light_state``; Special1 or Special2: sirens)."""
         ...
 
     def open_door(self, actor_id: int, door: VehicleDoor) -> None:

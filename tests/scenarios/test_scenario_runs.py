@@ -487,26 +487,47 @@ def test_the_door_scenario_flow_comes_from_behind_in_the_ego_lane(town):
 
 
 
-@pytest.mark.parametrize("scenario_type", ("OppositeVehicleRunningRedLight", "OppositeVehicleTakingPriority"))
-def test_the_junction_crossing_adversary_is_an_emergency_vehicle_with_sirens(town, scenario_type):
-    # LB2.0 opposite_vehicle_taking_priority.py, _initialize_actors (shared by both types): a vehicle with
-    # attribute special_type == 'emergency' with its sirens on (Special1 | Special2 there; the annotations' light_state
-    # string of such a combination is unknown, so ours sets Special1, the siren flag, alone)
-    from b2d_data.scenarios.catalog.actor_choices import SIREN_LIGHTS, emergency_vehicle_ids
+#: The lights LB2.0 turns on in each type's scenario vehicles, as the CARLA flag bits (Position 1, RightBlinker 16,
+#: LeftBlinker 32, Special1 512, Special2 1024; LibCarla rpc/VehicleLightState.h), and as Bench2Drive's annotation
+#: stores them: str() of a Boost.Python enum value that is no single member is its decimal value.
+#: - OppositeVehicleRunningRedLight / TakingPriority (opposite_vehicle_taking_priority.py ``self._lights``),
+#:   YieldToEmergencyVehicle (yield_to_emergency_vehicle.py ``_initialize_actors``): Special1 | Special2 = 1536.
+#: - Accident (route_obstacles.py ``Accident._lights``, the police car only): Special1 | Special2 | Position = 1537;
+#:   the two crashed cars keep NONE.
+#: - ParkedObstacle (``ParkedObstacle._lights``): RightBlinker | LeftBlinker | Position = 49.
+#: Every type names one emergency vehicle at most, and an emergency vehicle's sirens flash (either Special bit).
+LB2_LIGHTS = {
+    "OppositeVehicleRunningRedLight": ({1536}, "1536"),
+    "OppositeVehicleTakingPriority": ({1536}, "1536"),
+    "YieldToEmergencyVehicle": ({1536}, "1536"),
+    "Accident": ({1537, 0}, "1537"),
+    "ParkedObstacle": ({49}, "49"),
+}
+
+
+@pytest.mark.parametrize("scenario_type", sorted(LB2_LIGHTS))
+def test_scenario_vehicles_have_lb2_light_states(town, scenario_type):
+    from b2d_data.scenarios.catalog.actor_choices import emergency_vehicle_ids
+    from b2d_data.sim.builtin.sensors.actor_mesh import light_flags
+    from b2d_data.sim.light_state import carla_str, light_bits
 
     route = make_routes(town, scenario_type, 1, seed=0)[0]
-    seen: dict[int, tuple[str, str]] = {}
+    seen = {}
 
     def watch(snap, dense, manager):
         for a in snap.actors.values():
             if a.role_name == SCENARIO_ROLE and a.kind is ActorKind.VEHICLE:
-                seen.setdefault(a.id, (a.type_id, a.light_state))
+                seen.setdefault(a.id, a)
 
     trace = run_scripted(town, route, on_tick=watch)
     assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
-    assert len(seen) == 1
-    type_id, light_state = next(iter(seen.values()))
-    assert type_id in emergency_vehicle_ids() and light_state == SIREN_LIGHTS == "Special1"
+    bits, anno = LB2_LIGHTS[scenario_type]
+    assert {light_bits(a.light_state) for a in seen.values()} == bits
+    lit = [a for a in seen.values() if light_bits(a.light_state)]
+    assert len(lit) == 1 and carla_str(lit[0].light_state) == anno
+    emergency = lit[0].type_id in emergency_vehicle_ids()
+    assert emergency == bool(bits & {1536, 1537})
+    assert (light_flags(lit[0], night=False, timestamp=0.0).siren >= 0) == emergency
 
 
 #: Actors LB2.0 keeps 200 m underground from build to the trigger (type -> type_id prefixes of those actors), and the

@@ -18,9 +18,13 @@ WARNING_CONSTRUCTION = "static.prop.warningconstruction"
 TRAFFIC_WARNING = "static.prop.trafficwarning"
 DEBRIS = "static.prop.dirtdebris02"
 CONSTRUCTION_CONE = "static.prop.constructioncone"
-#: Light state names (CARLA's VehicleLightState flags) for sirens and hazard blinkers.
-SIREN_LIGHTS = "Special1"
-HAZARD_LIGHTS = "LeftBlinker|RightBlinker"
+#: Light state names (CARLA's VehicleLightState flags, ``sim/light_state.py``) LB2.0 sets: emergency vehicles
+#: (YieldToEmergencyVehicle, OppositeVehicleRunningRedLight/TakingPriority) ``Special1 | Special2``; Accident's
+#: police car adds ``Position`` (route_obstacles.py ``Accident._lights``); ParkedObstacle's car its hazard
+#: blinkers and ``Position`` (``ParkedObstacle._lights``).
+SIREN_LIGHTS = "Special1|Special2"
+POLICE_ACCIDENT_LIGHTS = "Special1|Special2|Position"
+HAZARD_LIGHTS = "RightBlinker|LeftBlinker|Position"
 #: DynamicObjectCrossing blocker props (XML ``blocker_model``) that bench2drive220-range routes draw from.
 BLOCKER_MODELS = ("static.prop.advertisement", "static.prop.container")
 #: DynamicObjectCrossing's ``blocker_model`` in LB2.0's routes_training.xml with how often each occurs (351

@@ -27,6 +27,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     lateral_offset,
     move_along,
     offset_transform,
+    walk_through_junctions,
     walk_to_sidewalk,
 )
 from b2d_data.scenarios.controllers import WalkerController, park
@@ -59,11 +60,10 @@ class DynamicObjectCrossing(Scenario):
         self.blocker_model = ctx.text("blocker_model", DEFAULT_BLOCKER_MODEL)
         self.crossing_angle = ctx.value("crossing_angle", 0.0)
         self.sign = 1.0 if self.direction == "right" else -1.0
-        wp = move_along(self.trigger_waypoint, self.distance)
-        if wp is None or wp.is_junction:
-            raise ScenarioSetupError(
-                f"{self.name}: no junction-free lane {self.distance:.0f} m after the trigger point"
-            )
+        # LB2.0 walks on through junctions (get_location_in_distance_from_wp(..., False)) and takes the map's lane
+        # at the location reached; a spot inside a junction is accepted
+        walked = walk_through_junctions(self.trigger_waypoint, self.distance)
+        wp = ctx.map.get_waypoint(walked.transform.location) or walked
         self.lane_waypoint = wp
         walk = walk_to_sidewalk(wp, self.direction)
         if walk is None:

@@ -39,7 +39,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
     neighbour,
     offset_transform,
-    same_direction_driving_neighbour,
+    same_direction,
 )
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
@@ -95,9 +95,10 @@ class ParkingCutIn(Scenario):
         self.sign = 1.0 if self.direction == "right" else -1.0
         self.slots: list[tuple[Waypoint, Waypoint]] = []  # (driving lane, parking lane)
         for d in (self.blocker_distance, self.cut_in_distance):
+            # LB2.0: ``reference_waypoint.next(d)[0]``, through a junction if one lies there, and whatever lane lies
+            # to that side (``get_right_lane``/``get_left_lane``), parking or not
             lane = move_along(self.trigger_waypoint, d)
-            # LB2.0 takes whatever lane lies to that side (``get_right_lane``/``get_left_lane``), parking or not
-            parking = neighbour(lane, self.direction) if lane is not None and not lane.is_junction else None
+            parking = neighbour(lane, self.direction) if lane is not None else None
             if parking is None:
                 raise ScenarioSetupError(
                     f"{self.name}: layout 'parking_lane' missing: no lane to the {self.direction} "
@@ -185,27 +186,29 @@ class StaticCutIn(Scenario):
         super().__init__(ctx)
         self.direction = _direction(ctx, self.name)
         self.distance = ctx.value("distance", 100.0)
-        side = same_direction_driving_neighbour(self.trigger_waypoint, self.direction)
-        if side is None:
-            raise ScenarioSetupError(
-                f"{self.name}: layout 'multi_lane' missing: no same-direction lane to the {self.direction} at the "
-                "trigger point"
-            )
-        self.side_lane = side
+        # LB2.0 (cut_in_with_static_vehicle.py ``_initialize_actors``): from ``next(distance)[0]`` on the ego's lane,
+        # each car stands on the lane to the side of the ego lane's point, the next point ``next(11)[0]`` on,
+        # through junctions; the cut-in car is the third, and its lane point (``_collision_wp``) needs 70 m of lane
+        # ahead (the plan after the cut-in).
+        self.ego_points: list[Waypoint] = []
         self.spots: list[Waypoint] = []
         count = self.queue_before + 1 + self.queue_after
+        point = move_along(self.trigger_waypoint, self.distance)
         for k in range(count):
-            wp = move_along(side, self.distance + k * self.queue_gap)
-            if wp is None or wp.is_junction:
+            side = neighbour(point, self.direction) if point is not None else None
+            # LB2.0 takes any lane there; an opposite one would hold the queue facing the ego (refused here)
+            if point is None or side is None or not same_direction(point, side):
                 raise ScenarioSetupError(
-                    f"{self.name}: the {self.direction} lane is not junction-free over the queue "
-                    f"({self.distance:.0f}–{self.distance + (count - 1) * self.queue_gap:.0f} m)"
+                    f"{self.name}: layout 'multi_lane' missing: no same-direction lane to the {self.direction} of the "
+                    f"ego's lane {self.distance + k * self.queue_gap:.0f} m after the trigger point"
                 )
-            self.spots.append(wp)
+            self.ego_points.append(point)
+            self.spots.append(side)
+            point = move_along(point, self.queue_gap)
+        ego_lane = self.ego_points[self.queue_before]
+        if move_along(ego_lane, self.final_distance) is None:
+            raise ScenarioSetupError(f"{self.name}: the ego's lane ends within {self.final_distance:.0f} m of the cut-in")
         cut_in_spot = self.spots[self.queue_before]
-        ego_lane = move_along(self.trigger_waypoint, self.distance + self.queue_before * self.queue_gap)
-        if ego_lane is None or ego_lane.is_junction:
-            raise ScenarioSetupError(f"{self.name}: the ego's lane is not junction-free beside the cut-in car")
         self.ego_lane = ego_lane
         self.cut_in_lateral = lateral_offset(ego_lane, cut_in_spot)
         self.models = [random_parked_car(ctx.rng) for _ in self.spots]

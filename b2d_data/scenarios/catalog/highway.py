@@ -3,8 +3,12 @@
 A car waits on the on-ramp at the XML's ``other_actor_location``. At the trigger the merge junction is cleared, the
 ramp entry removed from background traffic and the road after the junction kept free for 170 m; the car then drives
 down the ramp at the speed that brings it 10 m past the merge junction's exit (on the acceleration lane) exactly
-when the ego reaches its own junction exit (scenario_runner's SyncArrivalWithAgent). There it cuts into the ego's
-lane at 80 % of the ego's speed: 0.3 s on its lane, a 2 s lane change, 3 s in the ego's lane; then it is removed.
+when the ego reaches its own junction exit (scenario_runner's SyncArrivalWithAgent: straight-line distances, the
+car's speed is its distance over the ego's time to arrival; CARLA's ConstantVelocityAgent, which takes a leader's
+speed and coasts after a collision). Once within 5 m of its target while the ego has not yet passed its exit, it
+cuts into the ego's lane at 80 % of the ego's speed: 0.3 s on its lane, a 2 s lane change, 3 s in the ego's lane,
+braking for vehicles in its path as CARLA's BasicAgent does; then it is removed. Should the ego pass its exit
+first, LB2.0's car never cuts in and follows its lane; ours does so to the end of its lane walk and is removed.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from b2d_data.scenarios.framework import (
     ScenarioStatus,
     register,
 )
+from b2d_data.scenarios.triggers import is_in_front
 from b2d_data.sim import blueprints
 from b2d_data.sim.api import ScenarioHint, Snapshot
 
@@ -48,8 +53,16 @@ EXTRA_SPACE = 170.0
 #: The cut-in: time on its own lane, time of the lane change, time in the ego's lane (s); speed as ego's share.
 SAME_LANE_TIME, CHANGE_TIME, OTHER_LANE_TIME = 0.3, 2.0, 3.0
 SPEED_SHARE = 0.8
-#: Fastest the cut-in car drives while it times its arrival (m/s).
+#: Fastest the cut-in car drives while it times its arrival (m/s; not in LB2.0, whose forced speed is unbounded).
 MAX_SYNC_SPEED = 35.0
+#: LB2.0 ``SyncArrivalWithAgent(..., end_dist=5)``: the sync ends within this straight-line distance of the target (m).
+SYNC_END_DISTANCE = 5.0
+#: CARLA's BasicAgent (the agent of LB2.0's ``CutIn`` and the base of its ConstantVelocityAgent) looks for vehicles
+#: within ``_base_vehicle_threshold`` (5 m) + ``_speed_ratio`` (1) × its speed [m/s] and brakes at ``_max_brake`` 0.5.
+AGENT_BASE_THRESHOLD = 5.0
+AGENT_MAX_BRAKE = 0.5
+#: How far the car's lane walk reaches from ``other_actor_location`` (m).
+LANE_WALK = 400.0
 
 
 class _Phase(str, Enum):
@@ -102,7 +115,7 @@ class HighwayCutIn(JunctionScenario):
         start = ctx.map.get_waypoint(location_parameter(ctx, "other_actor_location"))
         if start is None or start.is_junction:
             raise ScenarioSetupError(f"{self.name}: other_actor_location is not on a lane before the junction")
-        walk = lane_walk(start, 400.0)
+        walk = lane_walk(start, LANE_WALK)
         inside = [k for k, wp in enumerate(walk) if wp.is_junction and wp.junction_id == self.junction.id]
         if not inside or inside[-1] + 1 >= len(walk):
             raise ScenarioSetupError(
@@ -116,7 +129,10 @@ class HighwayCutIn(JunctionScenario):
             raise ScenarioSetupError(f"{self.name}: the route ends inside junction {self.junction.id}")
         self.start_wp = start
         self.path = walk[: after + 1]
-        self.track = PathTrack.from_waypoints(self.path)
+        #: LB2.0's ``target_wp``: 10 m past the merge junction's exit; the ego's reference is its own exit.
+        self.target_wp = walk[after]
+        # the car's track runs on past the target: LB2.0's car follows its lane while the ego passes its exit first
+        self.track = PathTrack.from_waypoints(walk)
         self.actor_id: int | None = None
         self.agent: ConstantVelocityAgent | None = None
         self.phase = _Phase.WAITING
@@ -138,16 +154,35 @@ class HighwayCutIn(JunctionScenario):
         transform = Transform(Location(t.location.x, t.location.y, t.location.z + 0.2), Rotation(yaw=t.rotation.yaw))
         self.actor_id = self.spawn(spec.type_id, transform, spec.attributes)
         park(self.ctx.sim, self.actor_id)
-        self.agent = ConstantVelocityAgent(self.ctx.sim, self.actor_id, self.track, 0.0, resume_accel=8.0)
+        # CARLA's ConstantVelocityAgent (SyncArrivalWithAgent's): a leader in its path within 5 m + its speed sets the
+        # forced speed to the leader's; its collision sensor drops the forced velocity for good
+        self.agent = ConstantVelocityAgent(
+            self.ctx.sim, self.actor_id, self.track, 0.0, detect_vehicles=True, base_threshold=AGENT_BASE_THRESHOLD,
+            match_leader=True, stop_at_collision=True, resume_accel=8.0,
+        )  # fmt: skip
         self.phase = _Phase.SYNC
 
-    def _ego_to_exit(self, snapshot: Snapshot) -> tuple[float, float]:
+    def sync_step(self, snapshot: Snapshot) -> tuple[bool, float]:
+        """SyncArrivalWithAgent's update: (cut in now, the car's speed otherwise).
+
+        The car's and the ego's straight-line distances to their targets; the sync ends once the car is within
+        :data:`SYNC_END_DISTANCE` of its target while the ego's target still lies ahead of the ego (LB2.0:
+        ``(reference_target - ego) · reference_forward > 0``). The speed is the car's distance over the ego's time to
+        arrival (0 while the ego stands).
+        """
         ego = self.ctx.ego(snapshot)
-        if ego is None or self.exit_index is None:
-            return 0.0, 0.0
-        s = self.ctx.route.cumulative_length
-        index = self.ctx.route.closest_index(ego.location)
-        return float(s[self.exit_index] - s[index]), ego.speed()
+        actor = snapshot.actors.get(self.actor_id) if self.actor_id is not None else None
+        if ego is None or actor is None or self.ego_exit is None:
+            return False, 0.0
+        target = self.target_wp.transform.location
+        distance = actor.location.distance(target)
+        reference = self.ego_exit.transform
+        if distance < SYNC_END_DISTANCE and not is_in_front(ego, reference):
+            return True, 0.0
+        ego_distance, ego_speed = ego.location.distance(reference.location), ego.speed()
+        if ego_speed <= 0.0 or ego_distance <= 0.0:
+            return False, 0.0
+        return False, min(MAX_SYNC_SPEED, distance * ego_speed / ego_distance)
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
         """Time the arrival, then cut in; SUCCESS once the cut-in is over."""
@@ -158,14 +193,14 @@ class HighwayCutIn(JunctionScenario):
             return ScenarioStatus.SUCCESS if self._seen else ScenarioStatus.RUNNING
         self._seen = True
         if self.phase is _Phase.SYNC:
-            ego_left, ego_speed = self._ego_to_exit(snapshot)
-            actor_left = self.track.length - self.agent.progress(snapshot)
-            if actor_left <= 0.5 or ego_left <= 0.0:
-                self._begin_cut_in(snapshot, ego_speed)
+            cut_in, speed = self.sync_step(snapshot)
+            if cut_in:
+                ego = self.ctx.ego(snapshot)
+                self._begin_cut_in(snapshot, ego.speed() if ego is not None else 0.0)
             else:
-                # SyncArrivalWithAgent: arrive when the ego does, at the ego's time-to-arrival
-                self.agent.speed = min(MAX_SYNC_SPEED, ego_speed * actor_left / max(ego_left, 0.5))
-        if self.phase is _Phase.CUT_IN and self.agent.done:
+                self.agent.speed = speed
+        if self.agent.done:
+            # the cut-in is over, or (sync) the ego passed its exit first and the car reached its lane walk's end
             self.destroy(self.actor_id)
             self.phase = _Phase.DONE
             return ScenarioStatus.SUCCESS
@@ -179,7 +214,11 @@ class HighwayCutIn(JunctionScenario):
             here = self.path[-1]
         self.cut_in_speed = max(SPEED_SHARE * ego_speed, 1.0)
         track = PathTrack(cut_in_path(here, self.cut_in_speed))
-        self.agent = ConstantVelocityAgent(self.ctx.sim, self.actor_id, track, self.cut_in_speed)
+        # LB2.0's CutIn drives a BasicAgent: it brakes for a vehicle in its path within 5 m + its speed [m/s]
+        self.agent = ConstantVelocityAgent(
+            self.ctx.sim, self.actor_id, track, self.cut_in_speed, detect_vehicles=True,
+            base_threshold=AGENT_BASE_THRESHOLD, speed_ratio=1.0 / 3.6, max_brake=AGENT_MAX_BRAKE,
+        )  # fmt: skip
         self.phase = _Phase.CUT_IN
         log.debug("%s: cut-in at %.1f m/s", self.name, self.cut_in_speed)
 

@@ -2,11 +2,12 @@
 
 The flow source lies on the opposite lane ``distance + 30`` m ahead of the trigger; from it an opposite flow (a car
 every 40 m at the ego lane's speed limit) drives toward the trigger, offset by ``−(offset + lane width / 2 − 0.7)``
-m, so that it reaches ≈ ``offset`` m past the centre line into the ego's lane. Cones stand on the opposite lane
-every 5 m over ``distance / 2`` m, starting 15 m from the source toward the ego, 0.4 lane widths toward that lane's
-outer edge (the reason the flow drives so far left). The ego's lane and the normal opposite traffic are taken out
-of the background while the scenario runs; it ends when the ego is in front of the source point and within 50 m
-of it, or after 240 s. No flow car appears while the ego is within 15 m of the source (not in LB2.0, see start()).
+m with the sink's lane width (as LB2.0), so that it reaches ≈ ``offset`` m past the centre line into the ego's lane.
+Cones stand on the opposite lane every 5 m, ceil(distance / 10) of them, starting 15 m from the source toward the
+ego, 0.4 lane widths toward that lane's outer edge (the reason the flow drives so far left). The ego's lane and the
+normal opposite traffic are taken out of the background while the scenario runs; it ends when the ego is in front
+of the source point and within 50 m of it, or after 240 s. No flow car appears while the ego is within 15 m of the
+source (not in LB2.0, see start()).
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ class InvadingTurn(FlowScenario):
 
     xml_type = "InvadingTurn"
     source_extra = 30.0
-    cone_start = 15.0
+    #: LB2.0 ``_create_obstacle``: from ``source.next(10)[0]`` it steps 5 m and puts a cone, while the cones so far
+    #: span less than ``distance / 2``: ceil(distance / 10) cones, the first 15 m from the source.
+    cone_start = 10.0
     cone_gap = 5.0
     cone_side = 0.4  # of the opposite lane's width, toward its outer edge
     flow_gap = 40.0
@@ -62,19 +65,21 @@ class InvadingTurn(FlowScenario):
             )
         self.source_reference = ahead
         self.flow_waypoints = flow_path(source, sink, reach + 30.0)
-        self.lateral = -(self.offset + source.lane_width / 2.0 - self.edge_margin)
+        # LB2.0 ``_true_offset``: from the sink's lane width (the lane at the trigger), not the source's.
+        self.lateral = -(self.offset + sink.lane_width / 2.0 - self.edge_margin)
         self.cone_waypoints = self._cone_waypoints(source)
         self.cones: list[int] = []
 
     def _cone_waypoints(self, source: Waypoint) -> list[Waypoint]:
-        out = []
-        s = self.cone_start
-        while s <= self.cone_start + 0.5 * self.distance + 1e-6:
-            wp = move_along(source, s)
+        out: list[Waypoint] = []
+        wp = move_along(source, self.cone_start)
+        spanned = 0.0
+        while wp is not None and spanned < 0.5 * self.distance:
+            wp = move_along(wp, self.cone_gap)
             if wp is None:
                 break
             out.append(wp)
-            s += self.cone_gap
+            spanned += self.cone_gap
         if not out:
             raise ScenarioSetupError(f"{self.name}: the opposite lane ends before its first cone")
         return out

@@ -30,8 +30,8 @@ from b2d_data.scenarios.catalog.actor_choices import (
     CONSTRUCTION_CONE,
     DEBRIS,
     HAZARD_LIGHTS,
+    POLICE_ACCIDENT_LIGHTS,
     POLICE_CAR,
-    SIREN_LIGHTS,
     TRAFFIC_WARNING,
     WARNING_ACCIDENT,
     WARNING_CONSTRUCTION,
@@ -347,7 +347,7 @@ class AccidentSite(RoadObstacle):
         """Warning sign, police car with its lights on, two crashed cars."""
         self.spawn_warning_sign()
         police = self.spawn_obstacle_vehicle(POLICE_CAR, self.obstacle_waypoint)
-        self.ctx.sim.set_light_state(police, SIREN_LIGHTS)
+        self.ctx.sim.set_light_state(police, POLICE_ACCIDENT_LIGHTS)
         for wp in self._car_waypoints:
             self._crashed.append(self.spawn_obstacle_vehicle(random_parked_car(self.ctx.rng), wp))
         self.first_id, self.last_id = police, self._crashed[-1]

@@ -153,6 +153,25 @@ def move_along(wp: Waypoint, distance: float, forward: bool = True, step: float 
     return current
 
 
+def walk_through_junctions(wp: Waypoint, distance: float) -> Waypoint:
+    """scenario_runner's ``get_location_in_distance_from_wp(wp, distance, stop_at_junction=False)``: 1 m steps
+    through junctions until the steps' straight-line lengths add up to ``distance``; where the lane ends, its end.
+
+    The reference takes ``next(1.0)[-1]`` at a fork; here the straightest branch stands for it (CARLA's order of
+    the branches is its own), as :func:`move_along` does for ``next(d)[0]``. A sum short of ``distance`` by less
+    than 1 mm counts as reached: the steps' lengths carry rounding errors (ours a little under 1 m each), and
+    whether a whole ``distance`` takes one step more would otherwise depend on them.
+    """
+    current, travelled = wp, 0.0
+    while travelled < distance - 1e-3:
+        nxt = straightest(current.next(1.0), current.transform.rotation.yaw)
+        if nxt is None:
+            break
+        travelled += nxt.transform.location.distance(current.transform.location)
+        current = nxt
+    return current
+
+
 def lane_walk(wp: Waypoint, distance: float, forward: bool = True, step: float = 1.0) -> list[Waypoint]:
     """Waypoints every ``step`` m along the lane (straightest branch), starting with ``wp``; stops at a dead end."""
     out = [wp]

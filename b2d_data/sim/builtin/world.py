@@ -357,7 +357,7 @@ class BuiltinSimulator:
         self._layout_changed()
 
     def set_light_state(self, actor_id: int, light_state: str) -> None:
-        """Set a vehicle's light state name (``Special1`` turns sirens on)."""
+        """Set a vehicle's light state name (``sim.light_state``; Special1 or Special2: sirens)."""
         actor = self._actor(actor_id)
         if actor.kind is not ActorKind.VEHICLE:
             raise SimulatorError(f"actor {actor_id} ({actor.blueprint.type_id}) is not a vehicle and has no lights")

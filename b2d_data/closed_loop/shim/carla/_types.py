@@ -11,6 +11,8 @@ from __future__ import annotations
 from enum import IntEnum, IntFlag
 from typing import Any
 
+from b2d_data.sim.light_state import carla_str
+
 from ._geom import Transform, Vector3D
 
 __all__ = [
@@ -239,7 +241,9 @@ class VehicleLightState(IntFlag):
     All = 0xFFFFFFFF
 
     def __str__(self) -> str:
-        return self.name or str(int(self))
+        # CARLA binds this as a Boost.Python enum: str is a member's name only for a value that is one member,
+        # else the decimal value (Special1 | Special2 -> "1536"); Bench2Drive's annotations store that string.
+        return carla_str(int(self))
 
 
 class VehicleControl:

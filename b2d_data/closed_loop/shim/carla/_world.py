@@ -24,6 +24,7 @@ from b2d_data.format import transform as fmt
 from b2d_data.sim.api import FIXED_DELTA_SECONDS, ActorKind, ActorState, TrafficLightInfo
 from b2d_data.sim.api import VehicleControl as _SimVehicleControl
 from b2d_data.sim.api import WalkerControl as _SimWalkerControl
+from b2d_data.sim.light_state import light_bits
 
 from ._convert import (
     from_carla_location,
@@ -548,16 +549,7 @@ class Vehicle(Actor):
 
     def get_light_state(self) -> VehicleLightState:
         """The lights that are on."""
-        state = VehicleLightState.NONE
-        for name in str(self._state().light_state).replace(",", "|").split("|"):
-            name = name.strip()
-            if name and name.upper() != "NONE":
-                member = VehicleLightState.__members__.get(name)
-                if member is None:
-                    log.debug("unknown vehicle light state %r of actor %d", name, self._id)
-                else:
-                    state |= member
-        return state
+        return VehicleLightState(light_bits(self._state().light_state))
 
     def get_traffic_light(self) -> TrafficLight | None:
         """The traffic light whose trigger volume the vehicle is in, or None."""

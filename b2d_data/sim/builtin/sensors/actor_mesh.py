@@ -26,6 +26,7 @@ from b2d_data.sim.builtin.sensors.scene_mesh import (
     merge,
     prism,
 )
+from b2d_data.sim.light_state import VEHICLE_LIGHT_BITS, light_bits, sirens_on
 
 #: Realistic car paints, picked by actor id when the blueprint gives no colour.
 CAR_PAINTS: tuple[tuple[int, int, int], ...] = (
@@ -137,24 +138,29 @@ def paint_of(actor: ActorState) -> tuple[int, int, int]:
 
 @dataclass(frozen=True)
 class LightFlags:
-    """Which vehicle lamps glow: head/position lights, brake lights, the siren bar (phase 0/1)."""
+    """Which vehicle lamps glow: head/position lights, brake lights, the siren bar (phase 0/1).
+
+    ``beam``: the low beam lights the scene (``vehicle_lights``); position lights only glow.
+    """
 
     head: bool = False
     brake: bool = False
     siren: int = -1
+    beam: bool = False
 
 
 def light_flags(actor: ActorState, night: bool, timestamp: float) -> LightFlags:
-    """Lamp state from the light-state name, the brake and the time of day."""
-    state = actor.light_state or "NONE"
-    low = state.lower()
-    head = night or any(k in low for k in ("position", "lowbeam", "highbeam", "all"))
-    brake = "brake" in low or "all" in low
+    """Lamp state from the light-state flags, the brake and the time of day."""
+    bits = light_bits(actor.light_state)
+    beam = night or bool(bits & (VEHICLE_LIGHT_BITS["LowBeam"] | VEHICLE_LIGHT_BITS["HighBeam"]))
+    head = beam or bool(bits & VEHICLE_LIGHT_BITS["Position"])
+    brake = bool(bits & VEHICLE_LIGHT_BITS["Brake"])
     control = actor.control
     if isinstance(control, VehicleControl) and control.brake > 0.1:
         brake = True
-    siren = int(timestamp * 4.0) % 2 if ("special1" in low or "all" in low) else -1
-    return LightFlags(head, brake, siren)
+    # LB2.0 sets Special1 | Special2 on emergency vehicles; either bit lights the siren bar.
+    siren = int(timestamp * 4.0) % 2 if sirens_on(bits) else -1
+    return LightFlags(head, brake, siren, beam)
 
 
 # --------------------------------------------------------------------------------------------- vehicles

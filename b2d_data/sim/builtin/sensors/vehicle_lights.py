@@ -87,11 +87,11 @@ def vehicle_lights(
     """The lit low beams (``actor_mesh.light_flags``) of the ego, first, and of the vehicles nearest to it."""
     centre = ego.transform.location.to_array()
     vehicles = [a for a in actors if a.kind is ActorKind.VEHICLE and a.id != ego.id]
-    own = light_flags(ego, night, timestamp).head
+    own = light_flags(ego, night, timestamp).beam
     beams = [(ego, *low_beam(ego))] if own else []
     others = []
     for actor in vehicles:
-        if not light_flags(actor, night, timestamp).head:
+        if not light_flags(actor, night, timestamp).beam:
             continue
         pos, direction = low_beam(actor)
         distance = float(np.linalg.norm(pos - centre))

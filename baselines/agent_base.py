@@ -24,7 +24,6 @@ import numpy as np
 from b2d_data import coords
 from b2d_data.collection.route_planners import CommandPlanners
 from b2d_data.format.road_option import RoadOption
-from b2d_data.format.transform import Location
 from b2d_data.maps.geolocation import EARTH_RADIUS_EQUA, GeoReference
 
 from baselines.features import PoseHistory, to_ego
@@ -85,6 +84,12 @@ class RouteState:
         self.planner = CommandPlanners.from_dense_route([tuple(p) for p in self.route_xy], commands).target
         self.history = PoseHistory(TICK_DT)
         self.progress = 0
+        # The plan continued straight for 30 m: a route's last points count as passed only when driven through
+        # (> 99 % of the route and within 10 m of its end), so waypoints that stop at the end would stall short.
+        tail = self.route_xy[-1] - self.route_xy[-2] if len(self.route_xy) > 1 else np.array([1.0, 0.0])
+        tail = tail / max(float(np.hypot(*tail)), 1e-6)
+        extension = self.route_xy[-1] + np.arange(1, 31)[:, None] * tail
+        self._ahead_xy = np.concatenate([self.route_xy, extension])
 
     def local(self, lat: float, lon: float) -> tuple[float, float]:
         """World x, y of a GPS fix."""
@@ -105,11 +110,11 @@ class RouteState:
 
     def route_ahead(self, x: float, y: float, distances: np.ndarray) -> np.ndarray:
         """World points at the given arc lengths (m) ahead of the ego's projection on the dense route."""
-        window = self.route_xy[self.progress : self.progress + 40]
+        window = self._ahead_xy[self.progress : self.progress + 40]
         self.progress += int(np.argmin(np.hypot(window[:, 0] - x, window[:, 1] - y)))
-        pts = self.route_xy[self.progress :]
+        pts = self._ahead_xy[self.progress :]
         if len(pts) < 2:
-            return np.repeat(self.route_xy[-1:], len(distances), axis=0)
+            return np.repeat(self._ahead_xy[-1:], len(distances), axis=0)
         seg = np.hypot(*np.diff(pts, axis=0).T)
         s = np.concatenate([[0.0], np.cumsum(seg)])
         return np.stack([np.interp(distances, s, pts[:, 0]), np.interp(distances, s, pts[:, 1])], axis=1)

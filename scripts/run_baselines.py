@@ -98,27 +98,41 @@ def python_env() -> dict[str, str]:
 # ------------------------------------------------------------------------------------------------ stages
 
 
+def retire_if_older(folder: Path, product: Path, source: Path) -> None:
+    """Move ``folder`` aside when its ``product`` predates ``source`` (a grown corpus, a retrained model)."""
+    if product.is_file() and source.is_file() and source.stat().st_mtime > product.stat().st_mtime:
+        aside = folder.with_name(f"{folder.name}.before-{time.strftime('%Y%m%d-%H%M%S')}")
+        log.warning("%s predates %s: moving %s to %s and starting over", product, source, folder, aside)
+        folder.rename(aside)
+
+
 def stage_collect(args: argparse.Namespace, deadline: Deadline) -> bool:
     """``b2d-collect`` into WORK/corpus (resumed when a session was there before); True when complete."""
     corpus = args.work / "corpus"
     done = corpus / ".collect_done"
-    if done.is_file():
-        log.info("collect: done already (%s)", corpus)
-        return True
-    cmd = [sys.executable, "-m", "b2d_data.cli.collect", "--out", str(corpus), "--seed", str(args.seed),
-           "--width", str(args.width), "--height", str(args.height), "--workers", str(args.collect_workers),
-           "--no-progress"]  # fmt: skip
+    what = ["--seed", str(args.seed), "--width", str(args.width), "--height", str(args.height)]
     if args.preset:
-        cmd += ["--preset", args.preset, "--n-scale", str(args.n_scale)]
+        what += ["--preset", args.preset, "--n-scale", str(args.n_scale)]
     else:
         for s in args.scenarios:
-            cmd += ["--scenario", s]
-        cmd += ["--n", str(args.n), "--town", args.town]
+            what += ["--scenario", s]
+        what += ["--n", str(args.n), "--town", args.town]
+    # The marker holds what was collected: a larger --n (or another mix) continues the corpus with --resume.
+    if done.is_file() and done.read_text().strip() == " ".join(what):
+        log.info("collect: done already (%s)", corpus)
+        return True
+    cmd = [sys.executable, "-m", "b2d_data.cli.collect", "--out", str(corpus), *what,
+           "--workers", str(args.collect_workers), "--no-progress"]  # fmt: skip
     if (corpus / "collect.json").is_file():
         cmd.append("--resume")
     rc = run_until(cmd, deadline, args.work / "logs" / "collect.log", python_env())
+    if rc == 0 and args.val_split and not args.preset and not (corpus / "splits").is_dir():
+        # A validation part for the loss curves: b2d-split's base rule (5 %, at least one clip per scenario).
+        split = [sys.executable, "-m", "b2d_data.cli.split", "generate", str(corpus), "--split", "base",
+                 "--out", str(corpus / "splits" / "base.json")]  # fmt: skip
+        rc = run_until(split, deadline, args.work / "logs" / "collect.log", python_env())
     if rc == 0:
-        done.write_text(time.strftime("%Y-%m-%dT%H:%M:%S\n"))
+        done.write_text(" ".join(what) + "\n")
         return True
     log.warning("collect: %s", "interrupted" if rc is None else f"exit code {rc} (see logs/collect.log)")
     return False
@@ -174,6 +188,7 @@ def stage_train(args: argparse.Namespace, model: str, deadline: Deadline) -> boo
     out = args.work / "train" / model
     epochs = args.epochs_admlp if model == "admlp" else args.epochs_tcp
     last = out / "last.pt"
+    retire_if_older(out, last, args.work / "corpus" / ".collect_done")
     if last.is_file():
         import torch
 
@@ -231,6 +246,7 @@ def stage_eval(args: argparse.Namespace, routes: Path, deadline: Deadline) -> bo
     complete = True
     for agent in args.agents:
         out = args.work / "eval" / agent
+        retire_if_older(out, out / "eval.json", args.work / "train" / agent / "last.pt")
         if eval_done(out):
             log.info("eval %s: done already", agent)
             continue
@@ -274,21 +290,31 @@ def stage_table(args: argparse.Namespace, routes: Path) -> str | None:
         log.warning("table: no evaluation yet")
         return None
     summary = args.work / "summary.json"
+    # One folder with every held-out town's OpenDRIVE file, for the summary's Traffic_Signs junction check.
+    maps = args.work / "summary_maps"
+    maps.mkdir(exist_ok=True)
+    shipped = REPO / "b2d_data" / "data" / "carla_maps"
+    for xodr in [*shipped.glob("*.xodr"), *(args.work / "towns").glob("*.xodr")]:
+        link = maps / xodr.name
+        if not link.exists():
+            link.symlink_to(xodr.resolve())
     cmd = [sys.executable, "-m", "b2d_data.cli.eval", "summary", *[str(f) for _, f in folders],
-           "--routes", str(routes), "--names", *[a for a, _ in folders], "--out", str(summary)]  # fmt: skip
+           "--routes", str(routes), "--names", *[a for a, _ in folders], "--out", str(summary),
+           "--maps-dir", str(maps)]  # fmt: skip
     proc = subprocess.run(cmd, env=python_env(), capture_output=True, text=True)
     if proc.returncode != 0:
         log.error("b2d-eval summary failed: %s", proc.stderr[-2000:])
         return None
     data = json.loads(summary.read_text())
-    sets = data.get("sets") or data.get("results") or []
-    rows = ["| agent | routes | DS | SR (%) | efficiency | comfort | " + " | ".join(_ABILITIES) + " |",
-            "|---|---:|---:|---:|---:|---:|" + "---:|" * len(_ABILITIES)]  # fmt: skip
-    for (agent, _), entry in zip(folders, sets, strict=False):
+    rows = ["| agent | routes | DS | SR (%) | completion (%) | efficiency | comfort | " + " | ".join(_ABILITIES) + " |",
+            "|---|---:|---:|---:|---:|---:|---:|" + "---:|" * len(_ABILITIES)]  # fmt: skip
+    for entry in data.get("result_sets", []):
         abilities = entry.get("abilities") or {}
-        cells = [LABELS.get(agent, agent), _fmt(entry.get("num_routes")), _fmt(entry.get("driving_score")),
-                 _fmt(entry.get("success_rate")), _fmt(entry.get("efficiency")), _fmt(entry.get("smoothness"))]  # fmt: skip
-        cells += [_fmt(abilities.get(a)) for a in _ABILITIES]
+        cells = [LABELS.get(entry["name"], entry["name"]), f"{entry.get('records')}/{entry.get('expected_routes')}",
+                 _fmt(entry.get("driving_score")), _fmt(entry.get("success_rate")),
+                 _fmt(entry.get("route_completion")), _fmt((entry.get("efficiency") or {}).get("value")),
+                 _fmt((entry.get("smoothness") or {}).get("value"))]  # fmt: skip
+        cells += [_fmt((abilities.get(a) or {}).get("value")) for a in _ABILITIES]
         rows.append("| " + " | ".join(cells) + " |")
     table = "\n".join(rows)
     (args.work / "table.md").write_text(table + "\n\n```text\n" + proc.stdout + "```\n")
@@ -316,6 +342,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     g.add_argument("--height", type=int, default=180)
     g.add_argument("--collect-workers", default="auto")
     g.add_argument("--seed", type=int, default=1, help="seed of the training routes")
+    g.add_argument("--val-split", action="store_true",
+                   help="scenario mode: hold out a val part (b2d-split base rule) for the validation loss curve")  # fmt: skip
     g = p.add_argument_group("training")
     g.add_argument("--epochs-admlp", type=int, default=30)
     g.add_argument("--epochs-tcp", type=int, default=20)

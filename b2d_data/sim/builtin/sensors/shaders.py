@@ -173,6 +173,7 @@ LAMP_POOL
 #if SHADOW
 uniform mat4 u_shadow_matrix;   // world -> shadow-map texture coordinates and depth, all in [0, 1]
 uniform float u_shadow_offset;  // metres along the normal: keeps a lit face from shadowing itself
+uniform float u_shadow_strength;
 out vec3 v_shadow;
 out vec3 v_sun;
 #endif
@@ -277,8 +278,17 @@ void main() {
 #endif
 #endif
 #if SHADOW
-    v_sun = sun;
-    v_shadow = (u_shadow_matrix * vec4(p + n * u_shadow_offset, 1.0)).xyz;
+    // What the sun gives that a full shadow takes away: the shadow's strength, faded out over the last tenth of the
+    // map towards its edge (beyond it every fragment is sunlit). Per vertex: the fragment only scales it by the
+    // shadow map's result, one filtered lookup.
+    vec3 s = (u_shadow_matrix * vec4(p + n * u_shadow_offset, 1.0)).xyz;
+    vec2 edge = abs(s.xy - 0.5) * 2.0;
+    float keep = u_shadow_strength * (1.0 - smoothstep(0.9, 1.0, max(edge.x, edge.y)));
+    v_sun = sun * keep;
+#if MAT == 2 || (MAT == 1 && WET)
+    v_alt_sun *= keep;
+#endif
+    v_shadow = vec3(s.xy, min(s.z, 1.0));
 #endif
 #if NIGHT
     v_nrm = n;
@@ -322,7 +332,6 @@ uniform vec3 u_fog_color;
 FOG_FUNCTIONS
 #if SHADOW
 uniform sampler2DShadow u_shadow_map;
-uniform float u_shadow_strength;
 in vec3 v_shadow;
 in vec3 v_sun;
 #endif
@@ -377,13 +386,10 @@ layout(location = 3) out uint f_tag;
 
 #if SHADOW
 float sun_shadow() {
-    // Share of the sun's light this fragment loses: 0 in the sun, u_shadow_strength in full shadow. The
-    // comparison sampler filters 2×2 texels: an anti-aliased edge, blurred over a penumbra by the coarser map of
-    // an overcast sky. Beyond the map's edge every fragment is sunlit.
-    float lit = texture(u_shadow_map, vec3(v_shadow.xy, min(v_shadow.z, 1.0)));
-    vec2 edge = abs(v_shadow.xy - 0.5) * 2.0;
-    lit = mix(lit, 1.0, smoothstep(0.9, 1.0, max(edge.x, edge.y)));
-    return (1.0 - lit) * u_shadow_strength;
+    // Share of the sun's light (v_sun, already scaled by the shadow's strength) this fragment loses: 0 in the sun,
+    // 1 in full shadow. The comparison sampler filters 2×2 texels: an anti-aliased edge, blurred over a penumbra by
+    // the coarser map of an overcast sky.
+    return 1.0 - texture(u_shadow_map, v_shadow);
 }
 #endif
 
@@ -408,9 +414,9 @@ vec3 beams(vec3 p, vec3 n) {
 void main() {
     vec3 col = v_color;
 #if SHADOW
-    // Faces the sun does not reach (walls at noon, the far side of everything) skip the shadow map.
-    float shadow = 0.0;
-    if (v_sun.r + v_sun.g > 0.004) shadow = sun_shadow();
+    // No branch around the lookup for faces the sun does not reach (their v_sun is 0): a software rasteriser runs
+    // both sides of a branch.
+    float shadow = sun_shadow();
     col -= v_sun * shadow;
 #endif
 #if NIGHT

@@ -611,7 +611,7 @@ class Renderer:
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
         """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam, own
-        beam blocked, thin fog, distant), the sky
+        beam blocked, thin fog, distant, fog starts away), the sky
         program ("sky", clouds, falloff, airlight) or the shadow-map program ("shadow",), compiled once."""
         prog = self._programs.get(key)
         if prog is None:
@@ -621,9 +621,11 @@ class Renderer:
             elif key[0] == "shadow":
                 prog = self.ctx.program(vertex_shader=shaders.SHADOW_VERTEX, fragment_shader=shaders.SHADOW_FRAGMENT)
             else:
-                _, material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant = key
+                _, material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant, \
+                    fog_start = key
                 variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own,
-                           "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant}  # fmt: skip
+                           "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant,
+                           "fog_start": fog_start}  # fmt: skip
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet, **variant),
                     fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed, **variant),
@@ -920,11 +922,13 @@ class Renderer:
         # Whether a vehicle stands in the own beam (the per-pixel test of what it hides is compiled only then).
         own_blocked = own and seen.block_distance is not None and float(seen.block_distance[0]) < NO_BLOCKER
         thin_fog = light.fog_density <= shaders.THIN_FOG
+        fog_start = light.fog_start > 0.0
         variant = (shadow, airlight, falloff, shaders.light_count(len(seen)) if night else 0, own, own_blocked,
                    thin_fog)  # fmt: skip
         # Far static tiles get the distant programs (lit per vertex) where those differ: at night, or in fog too
-        # dense to be fogged per vertex everywhere.
-        distant_from = shaders.DISTANT_FROM if (night or not thin_fog) and not falloff else None
+        # dense to be fogged per vertex everywhere (and fogged per vertex at all).
+        per_vertex_fog_far = not (thin_fog or falloff or light.fog_start > 0.0)
+        distant_from = shaders.DISTANT_FROM if night or per_vertex_fog_far else None
         per_camera = {
             "u_viewproj": viewproj,
             "u_cam_pos": tuple(map(float, pose[:3, 3])),
@@ -943,7 +947,7 @@ class Renderer:
             near = near_runs.get(material, len(runs)) if material != Material.FACADE else len(runs)
             # The near runs (and the actors) first, then the distant ones: the drawing order of the triangles stays.
             for distant, part in ((False, slice(0, near)), (True, slice(near, len(runs)))):
-                key = ("scene", int(material), night, wet, *variant, distant)
+                key = ("scene", int(material), night, wet, *variant, distant, fog_start)
                 if distant and part.start == part.stop:
                     continue
                 prog = self._program(key)

@@ -186,7 +186,7 @@ out vec3 v_color;
 out float v_depth;
 flat out uvec2 v_ids;
 #if NIGHT
-flat out vec3 v_nrm;  // the provoking vertex's: flat faces have one normal, and flat inputs cost no interpolation
+out vec3 v_nrm;
 out vec3 v_albedo;
 #endif
 #if MAT == 2
@@ -260,6 +260,10 @@ void main() {
     v_facade = vec2(side / 3.1, p.z / 3.3);
     v_wall = abs(n.z) < 0.5 ? 1.0 : 0.0;
 #endif
+#if SHADOW
+    // Faces the sun does not reach (walls at noon, the far side of everything) keep their windows' sky and highlight.
+    float faces_sun = sun.r + sun.g > 0.004 ? 1.0 : 0.0;
+#endif
 #if VFOG
     float fog = fog_amount(u_cam_pos, p);
 #if NIGHT
@@ -283,7 +287,7 @@ void main() {
     // shadow map's result, one filtered lookup.
     vec3 s = (u_shadow_matrix * vec4(p + n * u_shadow_offset, 1.0)).xyz;
     vec2 edge = abs(s.xy - 0.5) * 2.0;
-    float keep = u_shadow_strength * (1.0 - smoothstep(0.9, 1.0, max(edge.x, edge.y)));
+    float keep = faces_sun * u_shadow_strength * (1.0 - smoothstep(0.9, 1.0, max(edge.x, edge.y)));
     v_sun = sun * keep;
 #if MAT == 2 || (MAT == 1 && WET)
     v_alt_sun *= keep;
@@ -342,7 +346,7 @@ uniform float u_lamp_glow;
 uniform float u_beams;
 LAMP_CONSTANTS
 SPOT_FUNCTIONS
-flat in vec3 v_nrm;
+in vec3 v_nrm;
 in vec3 v_albedo;
 #if VBEAMS
 in vec3 v_beams;
@@ -456,7 +460,7 @@ void main() {
 #else
     float pool = lamp_pool(v_pos);
 #endif
-    col += albedo * (LAMP_LIGHT * pool * u_night + beams(v_pos, v_nrm));
+    col += albedo * (LAMP_LIGHT * pool * u_night + beams(v_pos, normalize(v_nrm)));
 #if MAT == 1 && WET
     // A wet road mirrors the lamp above a pool: a glossy sheen where the dry road only scatters.
     col += LAMP_LIGHT * pool * u_night * 0.35 * water;
@@ -505,16 +509,17 @@ def light_count(n: int) -> int:
 THIN_FOG = 0.002
 
 
-def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False) -> bool:
+def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False) -> bool:
     """Whether a scene program fogs per vertex (its fog amount interpolated between the triangle's corners).
 
     Roads always (99 % of their triangles are under 4.3 m: the interpolated amount stays within about one level of
     the per-pixel one even in the densest fog); every other material but facades (a wall is two triangles whose
     corners lie metres farther from the camera than its middle) when the fog is thin (``thin_fog``) or the
-    triangles are far from the camera (``distant``); never when the fog thins with height. A software rasteriser
-    pays ~5 ns a pixel for the per-pixel fog.
+    triangles are far from the camera (``distant``); never when the fog thins with height (``falloff``) or starts
+    some way out (``fog_start``: the amount's kink there would be smeared over a triangle, up to 28 levels on a
+    road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog.
     """
-    if falloff:
+    if falloff or fog_start:
         return False
     return int(material) == 1 or ((thin_fog or distant) and int(material) != 2)
 
@@ -528,7 +533,7 @@ DISTANT_FROM = 30.0
 
 def _header(material: int, night: bool, wet: bool, shadow: bool = False, airlight: bool = False, falloff: bool = False,
             lights: int = 0, own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
-            distant: bool = False) -> str:  # fmt: skip
+            distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
     distant = distant and int(material) != 2  # facades are lit alike near and far
     # Distant: the own beam joins the other beams in the vertex shader's loop (light 0 first), the pools come per
     # vertex as on roads.
@@ -541,7 +546,7 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
         f"#define OWN_BLOCKED {int(own_blocked)}\n"
         # The other beams reach the fragment as their own input only on a wet road (its albedo changes per pixel).
         f"#define VBEAMS {int(int(material) == 1 and wet)}\n"
-        f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant))}\n"
+        f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start))}\n"
         f"#define VPOOL {int(pool)}\n"
         f"#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
     )
@@ -555,9 +560,10 @@ def _functions(source: str) -> str:
 
 def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, airlight: bool = False,
                  falloff: bool = False, lights: int = 0, own: bool = False, own_blocked: bool = True,
-                 thin_fog: bool = False, distant: bool = False) -> str:  # fmt: skip
+                 thin_fog: bool = False, distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
     """The scene vertex shader specialised for one material and weather variant."""
-    header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant)
+    header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
+                     fog_start)  # fmt: skip
     return header + _functions(_SCENE_VERTEX)
 
 
@@ -609,14 +615,16 @@ def _fragment(source: str, depth8: bool, packed: bool = False) -> str:
 def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False, *,
                    shadow: bool = False, airlight: bool = False, falloff: bool = False, lights: int = 0,
                    own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
-                   distant: bool = False) -> str:  # fmt: skip
+                   distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
     """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float;
     ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``: the sun's shadow map; ``airlight``: the
     low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the number of low beams, one of
     :data:`LIGHT_COUNTS`; ``own``: light 0 is the cameras' own beam, lit per pixel; ``own_blocked``: a vehicle
     stands in it; ``thin_fog``: the fog is thin enough to fog every material but facades per vertex,
-    :func:`vertex_fog`; ``distant``: triangles beyond :data:`DISTANT_FROM`, lit per vertex at night)."""
-    header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant)
+    :func:`vertex_fog`; ``distant``: triangles beyond :data:`DISTANT_FROM`, lit per vertex at night; ``fog_start``:
+    the fog starts some way out)."""
+    header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
+                     fog_start)  # fmt: skip
     return header + _fragment(_functions(_SCENE_FRAGMENT), depth8, packed)
 
 

@@ -305,7 +305,7 @@ void main() {
     }
 #endif
 #if VPOOL
-    // Lamp pools on roads per vertex: a pool is a Gaussian of 7 m, which the road's 2-4 m triangles carry.
+    // Lamp pools per vertex: a pool is a Gaussian of 7 m, which roads' 2-4 m and sidewalks' 2 m triangles carry.
     v_pool = lamp_pool(p);
 #endif
 #if VBEAMS
@@ -538,7 +538,9 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
     # Distant: the own beam joins the other beams in the vertex shader's loop (light 0 first), the pools come per
     # vertex as on roads.
     own = own and not distant
-    pool = night and (int(material) == 1 or distant)
+    # Lamp pools (7 m Gaussians) per vertex on every material but facades, whose two triangles a wall cannot carry
+    # a pool on: per pixel they cost a software rasteriser ~60 ms a frame of the rig at night.
+    pool = night and int(material) != 2
     return (
         f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
         f"#define SHADOW {int(shadow)}\n#define AIRLIGHT {int(airlight)}\n"

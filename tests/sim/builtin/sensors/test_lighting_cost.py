@@ -65,9 +65,10 @@ def test_facades_are_never_lit_as_distant_and_the_distant_road_lights_its_vertic
     assert "#define OWN 0\n" in road and "#define VPOOL 1\n" in road and "#define VFOG 1\n" in road
     wall = shaders.scene_vertex(Material.FACADE, True, False, lights=1, own=True, distant=True)
     assert "#define OWN 1\n" in wall and "#define VPOOL 0\n" in wall and "#define VFOG 0\n" in wall
-    # Near, a sidewalk (matte) in dense fog keeps fog and pools per pixel; in thin fog its fog is per vertex.
+    # Near, a sidewalk (matte) in dense fog keeps its fog per pixel (pools come per vertex on all but facades); in
+    # thin fog its fog is per vertex too.
     kerb = shaders.scene_vertex(Material.MATTE, True, False, lights=1, own=True)
-    assert "#define VPOOL 0\n" in kerb and "#define VFOG 0\n" in kerb
+    assert "#define VPOOL 1\n" in kerb and "#define VFOG 0\n" in kerb and "#define OWN 1\n" in kerb
     assert shaders.vertex_fog(Material.MATTE, False, thin_fog=True) and not shaders.vertex_fog(Material.ROAD, True, True)
 
 

@@ -331,6 +331,8 @@ def main() -> None:
     parser.add_argument("--town", default=None, help="generated town preset (default: the collection default)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--pin", action="store_true", help="pin each route process to one core (experiment)")
+    parser.add_argument("--profile-route", type=int, default=0,
+                        help="which of the pipeline's routes the profile runs (index; each has its own weather)")
     parser.add_argument("--skip-profile", action="store_true")
     parser.add_argument("--skip-pipeline", action="store_true")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures to this file")
@@ -353,9 +355,10 @@ def main() -> None:
         base = CollectConfig(out=Path(scratch), scenarios=scenarios, n=n, town=args.town, width=args.width,
                              height=args.height, seed=args.seed, workers=max(1, workers),
                              encode_workers=encode_workers)  # fmt: skip
-        tasks = _tasks(base, max(1, args.routes))
+        planned = _tasks(base, max(1, args.routes, args.profile_route + 1))
+        tasks = planned[: max(1, args.routes)]
         profile_config = replace(base, out=base.out / "profile")  # the profiled route may also have made a clip
-        for town in dict.fromkeys(t.town for t in tasks):
+        for town in dict.fromkeys(t.town for t in planned):
             for config in (base, profile_config):
                 ensure_hdmap(load_map(town), config.out)
         if not args.skip_pipeline:
@@ -384,7 +387,7 @@ def main() -> None:
         if not args.skip_profile:
             profiled = args.profile_frames if args.profile_frames is not None else (args.frames or 40)
             print("profile: one route, every stage serial ...", flush=True)
-            timer, timed, result = profile(profile_config, tasks[0], profiled, args.warmup)
+            timer, timed, result = profile(profile_config, planned[args.profile_route], profiled, args.warmup)
             if result.status == "error":
                 raise SystemExit(f"the profiled route failed: {result.reason}\n{result.error}")
             figures.update(_report_profile(timer, timed, result))
@@ -397,7 +400,7 @@ def _report_profile(timer: StageTimer, frames: int, result: Any) -> dict[str, An
     if frames == 0:
         raise SystemExit("no frame was profiled after the warm-up; raise --frames")
     print(f"\nPer-frame cost, one process, {frames} frames after warm-up (route {result.route_id}, "
-          f"{result.scenario}):")  # fmt: skip
+          f"{result.scenario}, weather {result.weather_id}):")  # fmt: skip
     print(f"| {'stage':<44} | wall ms | CPU ms | calls/frame |")
     print(f"|{'-' * 46}|--------:|-------:|------------:|")
     stages = {}

@@ -357,8 +357,15 @@ class _Culling:
         Front-to-back order lets the early depth test skip the shading of hidden pixels; tiles that follow each other
         in the buffer after sorting merge into one run.
         """
+        return self.split_runs(viewproj, eye, None)[0]
+
+    def split_runs(self, viewproj: np.ndarray, eye: np.ndarray, distant_from: float | None
+                   ) -> tuple[dict[int, np.ndarray], dict[int, int]]:  # fmt: skip
+        """:meth:`runs`, and per material the index of its first run whose tiles (and all after it) lie entirely
+        farther than ``distant_from`` m from ``eye`` (the number of runs where none does, or ``distant_from`` is
+        None). The order of the tiles is that of :meth:`runs`; a run only ends at that index as well."""
         if len(self.first) == 0:
-            return {}
+            return {}, {}
         # A box lies outside a clip plane (x < −w, x > w, …) when its corner furthest along the plane's normal does,
         # i.e. when all eight corners do: two small products for all tiles.
         rows, w = viewproj[:3], viewproj[3]
@@ -366,14 +373,26 @@ class _Culling:
         reach = self.centres @ planes[:, :3].T + planes[:, 3] + self.half @ np.abs(planes[:, :3]).T
         visible = np.flatnonzero((reach >= 0.0).all(axis=1))
         if len(visible) == 0:
-            return {m: _NO_RUNS for m in self.materials}
+            return {m: _NO_RUNS for m in self.materials}, {m: 0 for m in self.materials}
         distance = np.linalg.norm(self.centres[visible] - eye, axis=1)
-        visible = visible[np.lexsort((distance, self.material[visible]))]  # by material, then distance (stable)
+        order = np.lexsort((distance, self.material[visible]))  # by material, then distance (stable)
+        visible, distance = visible[order], distance[order]
         first, count, material = self.first[visible], self.count[visible], self.material[visible]
-        starts = np.flatnonzero(np.r_[True, (first[1:] != first[:-1] + count[:-1]) | (material[1:] != material[:-1])])
+        far = np.zeros(len(visible), bool)
+        if distant_from is not None:
+            # A tile is wholly beyond the distance when its centre is farther than that plus its half diagonal; the
+            # distant part of a material starts after its last tile that is not (the drawing order stays).
+            clear = distance - np.linalg.norm(self.half[visible], axis=1)
+            for m in np.unique(material).tolist():
+                sel = np.flatnonzero(material == m)
+                far[sel] = np.minimum.accumulate(clear[sel][::-1])[::-1] > distant_from
+        starts = np.flatnonzero(np.r_[True, (first[1:] != first[:-1] + count[:-1]) | (material[1:] != material[:-1])
+                                      | (far[1:] != far[:-1])])  # fmt: skip
         runs = np.stack([first[starts], np.add.reduceat(count, starts)], axis=1)
         bounds = np.searchsorted(material[starts], np.arange(len(self.materials) + 1))
-        return {m: runs[bounds[i] : bounds[i + 1]] for i, m in enumerate(self.materials)}
+        near = ~far[starts]
+        split = {m: int(near[bounds[i] : bounds[i + 1]].sum()) for i, m in enumerate(self.materials)}
+        return {m: runs[bounds[i] : bounds[i + 1]] for i, m in enumerate(self.materials)}, split
 
 
 def sky_grid(columns: int = 48, rows: int = 27) -> np.ndarray:
@@ -596,7 +615,8 @@ class Renderer:
 
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
-        """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam), the sky
+        """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam, own
+        beam blocked, thin fog, distant, fog starts away), the sky
         program ("sky", clouds, falloff, airlight) or the shadow-map program ("shadow",), compiled once."""
         prog = self._programs.get(key)
         if prog is None:
@@ -606,8 +626,11 @@ class Renderer:
             elif key[0] == "shadow":
                 prog = self.ctx.program(vertex_shader=shaders.SHADOW_VERTEX, fragment_shader=shaders.SHADOW_FRAGMENT)
             else:
-                _, material, night, wet, shadow, airlight, falloff, lights, own = key
-                variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own}
+                _, material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant, \
+                    fog_start = key
+                variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own,
+                           "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant,
+                           "fog_start": fog_start}  # fmt: skip
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet, **variant),
                     fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed, **variant),
@@ -900,38 +923,54 @@ class Renderer:
         # The ego's low beam lights the fog when there is fog to light.
         airlight = night and light.fog_density > 0.005 and seen.own
         falloff = light.fog_falloff > 0.0
-        variant = (shadow, airlight, falloff,
-                   shaders.light_count(len(seen)) if night else 0, night and seen.own)  # fmt: skip
+        own = night and seen.own
+        # Whether a vehicle stands in the own beam (the per-pixel test of what it hides is compiled only then).
+        own_blocked = own and seen.block_distance is not None and float(seen.block_distance[0]) < NO_BLOCKER
+        thin_fog = light.fog_density <= shaders.THIN_FOG
+        fog_start = light.fog_start > 0.0
+        variant = (shadow, airlight, falloff, shaders.light_count(len(seen)) if night else 0, own, own_blocked,
+                   thin_fog)  # fmt: skip
+        # Far static tiles get the distant programs (lit per vertex) where those differ: at night, or in fog too
+        # dense to be fogged per vertex everywhere (and fogged per vertex at all).
+        per_vertex_fog_far = not (thin_fog or falloff or light.fog_start > 0.0)
+        distant_from = shaders.DISTANT_FROM if night or per_vertex_fog_far else None
         per_camera = {
             "u_viewproj": viewproj,
             "u_cam_pos": tuple(map(float, pose[:3, 3])),
             "u_cam_fwd": tuple(map(float, pose[:3, 0])),
+            "u_pixel_ray": (1.0 / float(k[0, 0]), 1.0 / float(k[1, 1]), float(k[0, 2]), float(k[1, 2])),
             **beams,
         }
         camera_uniforms = {**uniforms, **per_camera}
-        static_runs = self._static_culling.runs(viewproj, pose[:3, 3])
+        static_runs, near_runs = self._static_culling.split_runs(viewproj, pose[:3, 3], distant_from)
         indirect = self._indirect_commands(static_runs, slot) if self.multi_draw else None
         for material in DRAW_ORDER:
             dyn = self._dyn_batches.get(material)
             runs = static_runs.get(material, _NO_RUNS)
             if dyn is None and not len(runs):
                 continue
-            key = ("scene", int(material), night, wet, *variant)
-            prog = self._program(key)
-            self._set_uniforms(prog, camera_uniforms)
-            if dyn is not None:
-                vao = self._vao(key, "dynamic")
-                vao.render(moderngl.TRIANGLES, vertices=int(dyn.count.sum()), first=int(dyn.first[0]))
-            if len(runs):
-                vao = self._vao(key, "static")
-                if indirect is not None:
-                    # One multi-draw per material instead of one call per visible tile run: the same triangles in
-                    # the same order (identical pixels), without hundreds of driver calls per view.
-                    buffer, offsets = indirect
-                    vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(runs), first=offsets[material])
-                else:
-                    for first, count in runs.tolist():
-                        vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+            near = near_runs.get(material, len(runs)) if material != Material.FACADE else len(runs)
+            # The near runs (and the actors) first, then the distant ones: the drawing order of the triangles stays.
+            for distant, part in ((False, slice(0, near)), (True, slice(near, len(runs)))):
+                key = ("scene", int(material), night, wet, *variant, distant, fog_start)
+                if distant and part.start == part.stop:
+                    continue
+                prog = self._program(key)
+                self._set_uniforms(prog, camera_uniforms)
+                if dyn is not None and not distant:
+                    vao = self._vao(key, "dynamic")
+                    vao.render(moderngl.TRIANGLES, vertices=int(dyn.count.sum()), first=int(dyn.first[0]))
+                if part.stop > part.start:
+                    vao = self._vao(key, "static")
+                    if indirect is not None:
+                        # One multi-draw per material (and part) instead of one call per visible tile run: the same
+                        # triangles in the same order (identical pixels), without hundreds of driver calls per view.
+                        buffer, offsets = indirect
+                        vao.render_indirect(buffer, moderngl.TRIANGLES, count=part.stop - part.start,
+                                            first=offsets[material] + part.start)  # fmt: skip
+                    else:
+                        for first, count in runs[part].tolist():
+                            vao.render(moderngl.TRIANGLES, vertices=count, first=first)
         self.ctx.depth_func = "<="
         sky_key = ("sky", light.cloudiness > 0.01, falloff, airlight)
         sky = self._program(sky_key)

@@ -9,12 +9,17 @@ specialised programs keep each pixel's work to what its material and the weather
 pixels no geometry covered with the sky colour, a depth of :data:`SKY_DEPTH` and the sky tag.
 
 What varies smoothly over a triangle is lit per vertex (ambient light, the sun's diffuse light on flat or smooth
-faces, sky reflections); what does not is lit per pixel: the sun's shadow (``SHADOW``: a shadow map drawn once per
-frame), fog (UE4's exponential height fog, :func:`lighting.fog_amount`), and at night (``NIGHT``) street-lamp pools
-and the cameras' own vehicle's low beam, whose cone and fall-off a 2 m road strip or a 30 m facade cannot carry in
-its corners (other vehicles' beams, seen from afar, are lit per vertex). With ``AIRLIGHT`` the own low beam also
-lights the fog between the camera and each pixel.
-Only the colour output depends on any of this: depth, tag and instance id come from the geometry alone.
+faces, sky reflections, other vehicles' low beams, street-lamp pools on all but facades); what does not is lit per
+pixel: the sun's shadow (``SHADOW``: a shadow map drawn once per frame, one filtered lookup a pixel) and at night
+(``NIGHT``) the cameras' own vehicle's low beam, whose cone and fall-off a 2 m road strip or a 30 m facade cannot
+carry in its corners. Fog (UE4's exponential height fog, :func:`lighting.fog_amount`) is per vertex where the
+triangles are small against its change (:func:`vertex_fog`: roads, thin fog, far tiles), else per pixel. Static
+tiles wholly beyond :data:`DISTANT_FROM` are drawn ``distant``: at night their own beam, pools and fog come per
+vertex (their triangles are small on screen, and a software rasteriser pays for every per-pixel light on them).
+With ``AIRLIGHT`` the own low beam also lights the fog between the camera and each pixel (per vertex).
+Every instruction a pixel runs costs llvmpipe about 2 ms a frame of the full rig (1600×900 ×7 on one thread):
+work that can move to the vertices does. Only the colour output depends on any of this: depth, tag and instance id
+come from the geometry alone.
 """
 
 from __future__ import annotations
@@ -33,6 +38,14 @@ AIRLIGHT_REACH = 45.0
 # Lamp colour and strength of the street-lamp pools (the light-map's 1.0), shared by surfaces and fog.
 _LAMPS = """
 const vec3 LAMP_LIGHT = vec3(1.0, 0.82, 0.58) * 0.45;
+"""
+
+# The street lamps' light on the ground at p (the light-map), fading out over the first 6 m above it.
+_LAMP_POOL = """
+float lamp_pool(vec3 p) {
+    vec2 luv = (p.xy - u_lightmap_rect.xy) * u_lightmap_rect.zw;
+    return textureLod(u_lightmap, luv, 0.0).r * clamp(1.0 - (p.z - 0.5) / 6.0, 0.0, 1.0);
+}
 """
 
 # Fog as UE4's exponential height fog: the optical depth along the ray from the camera to p, skipping the first
@@ -62,6 +75,10 @@ float fog_amount(vec3 cam, vec3 p) {
     // Without a height falloff (every Bench2Drive weather) the density is the same everywhere.
     return 1.0 - exp(-u_fog_density * inside);
 #endif
+}
+// The same without a height falloff, from the distance to the camera alone.
+float fog_of_distance(float len) {
+    return 1.0 - exp(-u_fog_density * max(len - u_fog_start, 0.0));
 }
 """
 
@@ -107,9 +124,13 @@ vec3 spot_light(int i, vec3 x, vec3 n, bool surface) {
     float inv = inversesqrt(d2 + 1e-4);
     float cone = clamp((dot(r, u_light_dir[i].xyz) * inv - 0.72) * (1.0 / 0.22), 0.0, 1.0);  // full within ±20°
     float below = clamp((0.06 - r.z * inv) * (1.0 / 0.07), 0.1, 1.0);  // cut off 1°-3.5° above the lamp's horizon
-    // Behind the vehicle standing in the beam (farther than u_light_pos.w, within its cone) the lamp is hidden.
-    vec4 b = u_light_block[i];
-    float hidden = clamp((d2 * inv - u_light_pos[i].w) * 2.0, 0.0, 1.0) * clamp((dot(r, b.xyz) * inv - b.w) * 400.0, 0.0, 1.0);
+    // Behind the vehicle standing in the beam (farther than u_light_pos.w, within its cone) the lamp is hidden. The
+    // own beam with no vehicle in it (OWN_BLOCKED 0) skips the test, whose result would be 0 at every pixel.
+    float hidden = 0.0;
+    if (OWN == 0 || i != 0 || OWN_BLOCKED != 0) {
+        vec4 b = u_light_block[i];
+        hidden = clamp((d2 * inv - u_light_pos[i].w) * 2.0, 0.0, 1.0) * clamp((dot(r, b.xyz) * inv - b.w) * 400.0, 0.0, 1.0);
+    }
     float w = cone * below * (1.0 - hidden) / (1.0 + d2 * (1.0 / (LOW_BEAM_REACH * LOW_BEAM_REACH)));
     if (surface) {
         // Lambert's cosine, lifted at grazing light: asphalt and paint send part of a low beam back towards it.
@@ -132,19 +153,32 @@ uniform vec3 u_sky_zenith;
 uniform vec3 u_sky_horizon;
 uniform float u_wetness;
 uniform float u_night;
+uniform vec3 u_fog_color;
+FOG_FUNCTIONS
 #if NIGHT
 uniform float u_beams;
 SPOT_FUNCTIONS
+#if VBEAMS
 out vec3 v_beams;
 #endif
+#endif
 #if AIRLIGHT
-FOG_FUNCTIONS
 AIRLIGHT_FUNCTION
 out vec3 v_air;
+#endif
+#if VFOG && NIGHT
+out float v_fog;
+#endif
+#if VPOOL
+uniform sampler2D u_lightmap;
+uniform vec4 u_lightmap_rect;
+out float v_pool;
+LAMP_POOL
 #endif
 #if SHADOW
 uniform mat4 u_shadow_matrix;   // world -> shadow-map texture coordinates and depth, all in [0, 1]
 uniform float u_shadow_offset;  // metres along the normal: keeps a lit face from shadowing itself
+uniform float u_shadow_strength;
 out vec3 v_shadow;
 out vec3 v_sun;
 #endif
@@ -232,8 +266,38 @@ void main() {
     v_wall = abs(n.z) < 0.5 ? 1.0 : 0.0;
 #endif
 #if SHADOW
-    v_sun = sun;
-    v_shadow = (u_shadow_matrix * vec4(p + n * u_shadow_offset, 1.0)).xyz;
+    // Faces the sun does not reach (walls at noon, the far side of everything) keep their windows' sky and highlight.
+    float faces_sun = sun.r + sun.g > 0.004 ? 1.0 : 0.0;
+#endif
+#if VFOG
+    float fog = fog_amount(u_cam_pos, p);
+#if NIGHT
+    v_fog = fog;
+#else
+    // By day the fog is the last step of the colour: it goes into every interpolated colour (a shadow then takes
+    // the fogged sun's share).
+    col = mix(col, u_fog_color, fog);
+    sun *= 1.0 - fog;
+#if MAT == 1 && WET
+    v_alt = mix(v_alt, u_fog_color, fog);
+#if SHADOW
+    v_alt_sun *= 1.0 - fog;
+#endif
+#endif
+#endif
+#endif
+#if SHADOW
+    // What the sun gives that a full shadow takes away: the shadow's strength, faded out over the last tenth of the
+    // map towards its edge (beyond it every fragment is sunlit). Per vertex: the fragment only scales it by the
+    // shadow map's result, one filtered lookup.
+    vec3 s = (u_shadow_matrix * vec4(p + n * u_shadow_offset, 1.0)).xyz;
+    vec2 edge = abs(s.xy - 0.5) * 2.0;
+    float keep = faces_sun * u_shadow_strength * (1.0 - smoothstep(0.9, 1.0, max(edge.x, edge.y)));
+    v_sun = sun * keep;
+#if MAT == 2 || (MAT == 1 && WET)
+    v_alt_sun *= keep;
+#endif
+    v_shadow = vec3(s.xy, min(s.z, 1.0));
 #endif
 #if NIGHT
     v_nrm = n;
@@ -245,7 +309,16 @@ void main() {
         others += spot_light(i, p, n, true);
     }
 #endif
+#if VPOOL
+    // Lamp pools per vertex: a pool is a Gaussian of 7 m, which roads' 2-4 m and sidewalks' 2 m triangles carry.
+    v_pool = lamp_pool(p);
+#endif
+#if VBEAMS
     v_beams = others * u_beams;
+#else
+    // Where the pixel keeps the vertex's albedo, the other beams' light is part of the interpolated colour.
+    col += albedo * others * u_beams;
+#endif
 #endif
 #if AIRLIGHT
     v_air = airlight(u_cam_pos, p);
@@ -268,7 +341,6 @@ uniform vec3 u_fog_color;
 FOG_FUNCTIONS
 #if SHADOW
 uniform sampler2DShadow u_shadow_map;
-uniform float u_shadow_strength;
 in vec3 v_shadow;
 in vec3 v_sun;
 #endif
@@ -281,12 +353,24 @@ LAMP_CONSTANTS
 SPOT_FUNCTIONS
 in vec3 v_nrm;
 in vec3 v_albedo;
+#if VBEAMS
 in vec3 v_beams;
+#endif
 #endif
 #if AIRLIGHT
 in vec3 v_air;
 #endif
+#if NIGHT || FALLOFF
 in vec3 v_pos;
+#elif !VFOG
+uniform vec4 u_pixel_ray;  // 1/fx, 1/fy, cx, cy of the camera's K
+#endif
+#if VFOG && NIGHT
+in float v_fog;
+#endif
+#if VPOOL
+in float v_pool;
+#endif
 in vec3 v_color;
 in float v_depth;
 flat in uvec2 v_ids;
@@ -311,27 +395,26 @@ layout(location = 3) out uint f_tag;
 
 #if SHADOW
 float sun_shadow() {
-    // Share of the sun's light this fragment loses: 0 in the sun, u_shadow_strength in full shadow. The
-    // comparison sampler filters 2×2 texels: an anti-aliased edge, blurred over a penumbra by the coarser map of
-    // an overcast sky. Beyond the map's edge every fragment is sunlit.
-    float lit = texture(u_shadow_map, vec3(v_shadow.xy, min(v_shadow.z, 1.0)));
-    vec2 edge = abs(v_shadow.xy - 0.5) * 2.0;
-    lit = mix(lit, 1.0, smoothstep(0.9, 1.0, max(edge.x, edge.y)));
-    return (1.0 - lit) * u_shadow_strength;
+    // Share of the sun's light (v_sun, already scaled by the shadow's strength) this fragment loses: 0 in the sun,
+    // 1 in full shadow. The comparison sampler filters 2×2 texels: an anti-aliased edge, blurred over a penumbra by
+    // the coarser map of an overcast sky.
+    return 1.0 - texture(u_shadow_map, v_shadow);
 }
 #endif
 
 #if NIGHT
-float lamp_pool(vec3 p) {
-    vec2 luv = (p.xy - u_lightmap_rect.xy) * u_lightmap_rect.zw;
-    return texture(u_lightmap, luv).r * clamp(1.0 - (p.z - 0.5) / 6.0, 0.0, 1.0);
-}
+LAMP_POOL
 
 vec3 beams(vec3 p, vec3 n) {
-#if OWN
-    return v_beams + spot_light(0, p, n, true) * u_beams;
+#if VBEAMS
+    vec3 others = v_beams;
 #else
-    return v_beams;
+    vec3 others = vec3(0.0);  // in v_color (or, on facades, none)
+#endif
+#if OWN
+    return others + spot_light(0, p, n, true) * u_beams;
+#else
+    return others;
 #endif
 }
 #endif
@@ -340,9 +423,9 @@ vec3 beams(vec3 p, vec3 n) {
 void main() {
     vec3 col = v_color;
 #if SHADOW
-    // Faces the sun does not reach (walls at noon, the far side of everything) skip the shadow map.
-    float shadow = 0.0;
-    if (v_sun.r + v_sun.g > 0.004) shadow = sun_shadow();
+    // No branch around the lookup for faces the sun does not reach (their v_sun is 0): a software rasteriser runs
+    // both sides of a branch.
+    float shadow = sun_shadow();
     col -= v_sun * shadow;
 #endif
 #if NIGHT
@@ -377,7 +460,11 @@ void main() {
 #endif
     vec3 fog_color = u_fog_color;
 #if NIGHT
+#if VPOOL
+    float pool = v_pool;
+#else
     float pool = lamp_pool(v_pos);
+#endif
     col += albedo * (LAMP_LIGHT * pool * u_night + beams(v_pos, normalize(v_nrm)));
 #if MAT == 1 && WET
     // A wet road mirrors the lamp above a pool: a glossy sheen where the dry road only scatters.
@@ -388,7 +475,19 @@ void main() {
     // Street lamps light the fog around them.
     fog_color += LAMP_LIGHT * u_lamp_glow * pool;
 #endif
+#if VFOG && NIGHT
+    col = mix(col, fog_color, v_fog);
+#elif VFOG
+    // (by day the vertex shader fogged the colours)
+#elif NIGHT || FALLOFF
     col = mix(col, fog_color, fog_amount(u_cam_pos, v_pos));
+#else
+    // The distance to the camera from the planar depth and the pixel's ray (gl_FragCoord is the image's u, v): the
+    // same value as length(v_pos - u_cam_pos), without three interpolated inputs, which a software rasteriser pays
+    // for at every pixel.
+    vec2 ray = (gl_FragCoord.xy - u_pixel_ray.zw) * u_pixel_ray.xy;
+    col = mix(col, fog_color, fog_of_distance(v_depth * sqrt(1.0 + dot(ray, ray))));
+#endif
 #if AIRLIGHT
     col += v_air;
 #endif
@@ -410,13 +509,52 @@ def light_count(n: int) -> int:
     return next(c for c in LIGHT_COUNTS if c >= min(n, MAX_LIGHTS))
 
 
+#: Fog extinction (per metre) up to which every material but facades is fogged per vertex (weathers 0, 1, 5, 7, 18,
+#: 19, 26): on a 30 m triangle next to the camera the per-vertex distance is off by up to ~10 m, 1 % of fog here.
+THIN_FOG = 0.002
+
+
+def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False) -> bool:
+    """Whether a scene program fogs per vertex (its fog amount interpolated between the triangle's corners).
+
+    Roads always (99 % of their triangles are under 4.3 m: the interpolated amount stays within about one level of
+    the per-pixel one even in the densest fog); every other material but facades (a wall is two triangles whose
+    corners lie metres farther from the camera than its middle) when the fog is thin (``thin_fog``) or the
+    triangles are far from the camera (``distant``); never when the fog thins with height (``falloff``) or starts
+    some way out (``fog_start``: the amount's kink there would be smeared over a triangle, up to 28 levels on a
+    road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog.
+    """
+    if falloff or fog_start:
+        return False
+    return int(material) == 1 or ((thin_fog or distant) and int(material) != 2)
+
+
+#: Static tiles whose every point lies farther than this (m) from the camera are drawn ``distant``: at night every
+#: material but facades gets its lamp pools, fog and the own low beam per vertex there. Beyond 30 m the beam's cone
+#: is over 20 m wide and its fall-off slow, a pool is a 7 m Gaussian and the fog nearly linear across a triangle of
+#: a few metres, while a software rasteriser pays for every per-pixel light on the many small far triangles.
+DISTANT_FROM = 30.0
+
+
 def _header(material: int, night: bool, wet: bool, shadow: bool = False, airlight: bool = False, falloff: bool = False,
-            lights: int = 0, own: bool = False) -> str:  # fmt: skip
+            lights: int = 0, own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
+            distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
+    distant = distant and int(material) != 2  # facades are lit alike near and far
+    # Distant: the own beam joins the other beams in the vertex shader's loop (light 0 first), the pools come per
+    # vertex as on roads.
+    own = own and not distant
+    # Lamp pools (7 m Gaussians) per vertex on every material but facades, whose two triangles a wall cannot carry
+    # a pool on: per pixel they cost a software rasteriser ~60 ms a frame of the rig at night.
+    pool = night and int(material) != 2
     return (
         f"#version 330\n#define MAT {int(material)}\n#define NIGHT {int(night)}\n#define WET {int(wet)}\n"
         f"#define SHADOW {int(shadow)}\n#define AIRLIGHT {int(airlight)}\n"
         f"#define FALLOFF {int(falloff)}\n#define NLIGHTS {int(lights)}\n#define OWN {int(own)}\n"
-        f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
+        f"#define OWN_BLOCKED {int(own_blocked)}\n"
+        # The other beams reach the fragment as their own input only on a wet road (its albedo changes per pixel).
+        f"#define VBEAMS {int(int(material) == 1 and wet)}\n"
+        f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start))}\n"
+        f"#define VPOOL {int(pool)}\n"
         f"#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
     )
 
@@ -424,13 +562,16 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
 def _functions(source: str) -> str:
     """Paste the shared GLSL functions into a shader source."""
     return (source.replace("FOG_FUNCTIONS", _FOG).replace("LAMP_CONSTANTS", _LAMPS).replace("SPOT_FUNCTIONS", _SPOTS)
-            .replace("AIRLIGHT_FUNCTION", _AIRLIGHT))  # fmt: skip
+            .replace("AIRLIGHT_FUNCTION", _AIRLIGHT).replace("LAMP_POOL", _LAMP_POOL))  # fmt: skip
 
 
 def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, airlight: bool = False,
-                 falloff: bool = False, lights: int = 0, own: bool = False) -> str:  # fmt: skip
+                 falloff: bool = False, lights: int = 0, own: bool = False, own_blocked: bool = True,
+                 thin_fog: bool = False, distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
     """The scene vertex shader specialised for one material and weather variant."""
-    return _header(material, night, wet, shadow, airlight, falloff, lights, own) + _functions(_SCENE_VERTEX)
+    header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
+                     fog_start)  # fmt: skip
+    return header + _functions(_SCENE_VERTEX)
 
 
 # The depth target: float metres, or the uint8 the depth PNG stores. OpenCV's float → uint8 conversion is
@@ -480,12 +621,17 @@ def _fragment(source: str, depth8: bool, packed: bool = False) -> str:
 
 def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False, *,
                    shadow: bool = False, airlight: bool = False, falloff: bool = False, lights: int = 0,
-                   own: bool = False) -> str:  # fmt: skip
+                   own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
+                   distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
     """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float;
     ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``: the sun's shadow map; ``airlight``: the
     low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the number of low beams, one of
-    :data:`LIGHT_COUNTS`; ``own``: light 0 is the cameras' own beam, lit per pixel)."""
-    header = _header(material, night, wet, shadow, airlight, falloff, lights, own)
+    :data:`LIGHT_COUNTS`; ``own``: light 0 is the cameras' own beam, lit per pixel; ``own_blocked``: a vehicle
+    stands in it; ``thin_fog``: the fog is thin enough to fog every material but facades per vertex,
+    :func:`vertex_fog`; ``distant``: triangles beyond :data:`DISTANT_FROM`, lit per vertex at night; ``fog_start``:
+    the fog starts some way out)."""
+    header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
+                     fog_start)  # fmt: skip
     return header + _fragment(_functions(_SCENE_FRAGMENT), depth8, packed)
 
 
@@ -571,6 +717,7 @@ void main() {
 def sky_vertex(clouds: bool, falloff: bool = False, airlight: bool = False) -> str:
     """The sky vertex shader, with or without the cloud layer, a fog thinning with height and the low beam's glow."""
     header = (f"#version 330\n#define CLOUDS {int(clouds)}\n#define FALLOFF {int(falloff)}\n#define AIRLIGHT {int(airlight)}\n"
+              "#define OWN 1\n#define OWN_BLOCKED 1\n"
               f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n"
               f"#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n")  # fmt: skip
     return header + _functions(_SKY_VERTEX)

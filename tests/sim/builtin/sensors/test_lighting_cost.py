@@ -1,0 +1,163 @@
+"""What the lighting does per vertex to stay cheap on a software rasteriser (issue 24): distant tiles, road fog, shadows.
+
+Expected values are worked out by hand from the formulas in ``shaders.py`` (comments give the arithmetic); the
+rendered pixel must match within the 8-bit rounding of the image.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from b2d_data.format.transform import Location, Rotation, Transform
+from b2d_data.format.weather import WeatherParameters
+from b2d_data.sim.builtin.sensors import shaders
+from b2d_data.sim.builtin.sensors.lighting import Lighting
+from b2d_data.sim.builtin.sensors.renderer import CameraView, Renderer, _Culling, _Tiles, pack_vertices
+from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh
+from b2d_data.sim.builtin.sensors.vehicle_lights import NO_BLOCKER, SpotLights
+
+W, H = 161, 91  # odd: the centre pixel's centre lies on the optical axis
+
+# ---------------------------------------------------------------------------------------------- distant tile runs
+VIEWPROJ = np.diag([0.001, 0.001, 0.001, 1.0])  # everything within ±1000 m is in view
+
+
+def _tiles(boxes: list[tuple[tuple[float, float], tuple[float, float]]], firsts: list[int]) -> _Tiles:
+    """Flat tiles (z = 0) with x and y ranges, 30 vertices each, starting at ``firsts``."""
+    lo = np.array([(x[0], y[0], 0.0) for x, y in boxes])
+    hi = np.array([(x[1], y[1], 0.0) for x, y in boxes])
+    return _Tiles(np.array(firsts), np.full(len(firsts), 30), lo, hi)
+
+
+def test_runs_split_where_every_later_tile_lies_beyond_the_distance():
+    # Seen from the origin: A x 0–10 (centre 5, half diagonal √(25 + 1) = 5.099: nearest point ≤ −0.1 m),
+    # B x 40–50 (45 − 5.099 = 39.9), C x 100–110 (99.9), in the buffer one after the other (vertices 0–90).
+    a, b, c = ((0, 10), (-1, 1)), ((40, 50), (-1, 1)), ((100, 110), (-1, 1))
+    culling = _Culling({1: _tiles([a, b, c], [0, 30, 60])})
+    eye = np.zeros(3)
+    runs, near = culling.split_runs(VIEWPROJ, eye, None)
+    np.testing.assert_array_equal(runs[1], [[0, 90]])  # no split: one run, all of it near
+    assert near[1] == 1
+    runs, near = culling.split_runs(VIEWPROJ, eye, 30.0)
+    np.testing.assert_array_equal(runs[1], [[0, 30], [30, 60]])  # B and C beyond 30 m: a run of their own
+    assert near[1] == 1
+    runs, near = culling.split_runs(VIEWPROJ, eye, 50.0)
+    np.testing.assert_array_equal(runs[1], [[0, 60], [60, 30]])  # only C beyond 50 m
+    assert near[1] == 1
+    # A wide tile E (x 20–100, y ±40: centre 60, half diagonal √(40² + 40²) = 56.57, nearest point 3.4 m) drawn
+    # after B keeps B near: the distant part starts after the last tile that is not wholly beyond 30 m.
+    e = ((20, 100), (-40, 40))
+    runs, near = _Culling({1: _tiles([a, b, c, e], [0, 30, 60, 90])}).split_runs(VIEWPROJ, eye, 30.0)
+    # Order by centre distance: A 5, B 45, E 60, C 105; A and B merge (0 + 30 = 30), E (90) and C (60) do not.
+    np.testing.assert_array_equal(runs[1], [[0, 60], [90, 30], [60, 30]])
+    assert near[1] == 2
+    # And the plain runs are those of the split with nothing distant.
+    np.testing.assert_array_equal(_Culling({1: _tiles([a, b, c], [0, 30, 60])}).runs(VIEWPROJ, eye)[1], [[0, 90]])
+
+
+def test_facades_are_never_lit_as_distant_and_the_distant_road_lights_its_vertices():
+    # The header's switches, from vertex_fog and _header: a distant road moves the own beam into the per-vertex
+    # loop (OWN 0) and takes pools and fog per vertex; a facade keeps all per pixel.
+    road = shaders.scene_vertex(Material.ROAD, True, False, lights=1, own=True, distant=True)
+    assert "#define OWN 0\n" in road and "#define VPOOL 1\n" in road and "#define VFOG 1\n" in road
+    wall = shaders.scene_vertex(Material.FACADE, True, False, lights=1, own=True, distant=True)
+    assert "#define OWN 1\n" in wall and "#define VPOOL 0\n" in wall and "#define VFOG 0\n" in wall
+    # Near, a sidewalk (matte) in dense fog keeps its fog per pixel (pools come per vertex on all but facades); in
+    # thin fog its fog is per vertex too.
+    kerb = shaders.scene_vertex(Material.MATTE, True, False, lights=1, own=True)
+    assert "#define VPOOL 1\n" in kerb and "#define VFOG 0\n" in kerb and "#define OWN 1\n" in kerb
+    assert shaders.vertex_fog(Material.MATTE, False, thin_fog=True) and not shaders.vertex_fog(Material.ROAD, True, True)
+
+
+# ------------------------------------------------------------------------------------------------ pixel checks
+@pytest.fixture(scope="module")
+def renderer():
+    r = Renderer()
+    yield r
+    r.close()
+
+
+def _quad(x0: float, x1: float, half_width: float) -> np.ndarray:
+    """Two ground triangles over x0…x1, y ±half_width: (x0,−w) (x1,−w) (x1,w) and (x0,−w) (x1,w) (x0,w)."""
+    p = np.array([[x0, -half_width, 0.0], [x1, -half_width, 0.0], [x1, half_width, 0.0], [x0, half_width, 0.0]])
+    return np.stack([p[[0, 1, 2]], p[[0, 2, 3]]])
+
+
+def _view(target_x: float, height: float = 1.6) -> CameraView:
+    """A camera at (0, 0, height) whose centre pixel (80, 45) looks at the ground point (target_x, 0, 0)."""
+    pitch = -math.degrees(math.atan2(height, target_x))
+    return CameraView(Transform(Location(0.0, 0.0, height), Rotation(pitch=pitch)).matrix(), 70.0, W, H)
+
+
+def _barycentric(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Weights of p in a ground triangle (x, y only): perspective-correct interpolation is this, in the world."""
+    m = np.array([[tri[0, 0], tri[1, 0], tri[2, 0]], [tri[0, 1], tri[1, 1], tri[2, 1]], [1.0, 1.0, 1.0]])
+    return np.linalg.solve(m, np.array([p[0], p[1], 1.0]))
+
+
+def test_road_fog_is_interpolated_between_the_triangle_corners(renderer):
+    # A black road (nothing but fog shows on it) from 2 to 60 m, ±20 m wide: the centre pixel sees (30, 0, 0), in the
+    # second triangle (its diagonal crosses x = 30 at y = −20 + 40 · 28 / 58 = −0.69). Fog 100: σ = 0.0480453 /m,
+    # fog colour (0.7, 0.72, 0.75) by day.
+    tris = _quad(2.0, 60.0, 20.0)
+    renderer.set_static(TriangleMesh.from_triangles(tris, (0, 0, 0), 7, material=Material.ROAD))
+    renderer.set_dynamic(TriangleMesh.empty())
+    weather = WeatherParameters(sun_altitude_angle=90.0, fog_density=100.0)
+    rgb = renderer.render([_view(30.0)], Lighting.from_weather(weather))[0].rgb[45, 80].astype(float)
+    cam = np.array([0.0, 0.0, 1.6])
+    corner_fog = 1.0 - np.exp(-0.0480453 * np.linalg.norm(tris[1] - cam, axis=1))
+    # Corners (2, −20), (60, 20), (2, 20): 20.16, 63.27, 20.16 m away: fog 0.6204, 0.9522, 0.6204; weights of
+    # (30, 0): 30 = 2 + 58 w1, w1 = 0.4828; 0 = −20 + 40 (w1 + w2), w2 = 0.0172; w0 = 0.5: f = 0.3102 + 0.4597 +
+    # 0.0107 = 0.7805, the pixel 0.7805 · 255 · (0.7, 0.72, 0.75).
+    f = float(_barycentric(tris[1], np.array([30.0, 0.0])) @ corner_fog)
+    assert f == pytest.approx(0.7805, abs=1e-3)
+    np.testing.assert_allclose(rgb, 255.0 * f * np.array([0.7, 0.72, 0.75]), atol=1.0)
+    # Per pixel it would be 1 − exp(−0.0480453 · 30.043) = 0.7638: 2-3 levels darker, which the check above tells.
+    assert abs(f - (1.0 - math.exp(-0.0480453 * math.hypot(30.0, 1.6)))) * 255.0 * 0.7 > 2.5
+
+
+def _low_beam(x: np.ndarray) -> float:
+    """shaders._SPOTS's spot_light on ground (normal +z) at x, lamp (0, 0, 1) looking +x, colour 1, no blocker."""
+    r = x - np.array([0.0, 0.0, 1.0])
+    d2 = float(r @ r)
+    inv = 1.0 / math.sqrt(d2 + 1e-4)
+    cone = min(max((r[0] * inv - 0.72) / 0.22, 0.0), 1.0)
+    below = min(max((0.06 - r[2] * inv) / 0.07, 0.1), 1.0)
+    c = -r[2] * inv
+    facing = min(max(c * 20.0 + 0.4, 0.0), 1.0) * (0.45 + 0.55 * max(c, 0.0))
+    return cone * below / (1.0 + d2 / 18.0**2) * facing
+
+
+def test_a_distant_road_gets_the_own_beam_at_its_corners(renderer):
+    # A road from 36 to 100 m (±5 m): each triangle's tile lies wholly beyond 30 m (centre 68 m away, half diagonal
+    # √(32² + 5²) = 32.39: nearest point 35.6 m), so it is drawn distant: the ego's beam is lit per vertex. The centre
+    # pixel sees (75, 0, 0) in the first triangle (the diagonal crosses x = 75 at y = −5 + 10 · 39 / 64 = 1.09).
+    tris = _quad(36.0, 100.0, 5.0)
+    mesh = TriangleMesh.from_triangles(tris, (200, 200, 200), 7, material=Material.ROAD)
+    renderer.set_static(mesh)
+    renderer.set_dynamic(TriangleMesh.empty())
+    own = SpotLights(np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]), np.ones((1, 3)), True,
+                     np.array([[0.0, 0.0, 1.0, 1.0]]), np.array([NO_BLOCKER]))  # fmt: skip
+    night = Lighting.from_weather(WeatherParameters(sun_altitude_angle=-90.0))
+    rgb = renderer.render([_view(75.0)], night, own)[0].rgb[45, 80].astype(float)
+    # Each corner's colour: its albedo (the packed, per-vertex varied grey) times the night ambient facing up,
+    # (0.03, 0.035, 0.05), plus the beam there (u_beams = 1); no lamps, no fog, no sun.
+    albedo = pack_vertices(mesh)["col"][:3, :3].astype(float)  # the first triangle's corners
+    beam = np.array([_low_beam(v) for v in tris[0].astype(np.float64)])
+    # (36, −5): r = (36, −5, −1), d² = 1322, 1/d = 0.027503; cone (0.99011 − 0.72) / 0.22 → 1, below → 1, reach
+    # 1 / (1 + 1322 / 324) = 0.19684, facing min(0.55006 + 0.4, 1) · (0.45 + 0.01513) = 0.44190: 0.08698.
+    # (100, ±5): d² = 10026, 1/d = 0.0099870; reach 0.031304, below (0.06 + 0.009987) / 0.07 = 0.99981, facing
+    # 0.59974 · 0.45549 = 0.27318: 0.0085500.
+    np.testing.assert_allclose(beam, [0.08698, 0.0085500, 0.0085500], atol=2e-5)
+    weights = _barycentric(tris[0], np.array([75.0, 0.0]))
+    # 75 = 36 + 64 (w1 + w2), 0 = −5 + 10 w2: w2 = 0.5, w1 = 0.10938, w0 = 0.39062.
+    np.testing.assert_allclose(weights, [0.39062, 0.10938, 0.5], atol=1e-5)
+    want = weights @ (albedo * (np.array([0.03, 0.035, 0.05]) + beam[:, None]))
+    np.testing.assert_allclose(rgb, want, atol=1.0)
+    # Per pixel the beam at (75, 0, 0) would be 1 / (1 + 5626 / 324) = 0.054448 · facing 0.66664 · 0.45733 = 0.01660,
+    # against 0.39062 · 0.08698 + 0.60938 · 0.00855 = 0.03919 from the corners: 0.0226 · ~200 = 4.5 levels apart,
+    # which the check above tells.
+    assert float(weights @ beam) - _low_beam(np.array([75.0, 0.0, 0.0])) == pytest.approx(0.02258, abs=1e-4)

@@ -163,6 +163,14 @@ class ExpertConfig:
     #: a deviation from PDM-Lite): from 15-20 m back a 14 m/s flow 30 m apart never leaves a gap long enough.
     flow_hold_range: float = 25.0
     flow_hold_margin: float = 1.0
+    #: A flow whose cars' hinted paths cross the route has its own gap acceptance (``expert/crossing_flow.py``; a
+    #: deviation from PDM-Lite, on in :meth:`for_builtin`): the ego waits where its box keeps ``flow_hold_margin``
+    #: m from their paths, goes when its forecast clears every car's real box lengthened by
+    #: ``flow_crossing_accept_time`` s of its speed at each end, and once it can no longer stop short of a path it
+    #: drives on while the forecast clears them by ``flow_crossing_keep_time`` s.
+    flow_crossing_gap: bool = False
+    flow_crossing_accept_time: float = 0.1
+    flow_crossing_keep_time: float = 0.0
 
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this
@@ -268,4 +276,4 @@ class ExpertConfig:
         """
         extra = {**cls().extra_length_two_ways, **BUILTIN_EXTRA_LENGTH_TWO_WAYS}
         return cls(extra_length_two_ways=extra, invading_turn_fence_margin=0.0, invading_turn_extra_shift=0.3,
-                   invading_turn_end=25.0)
+                   invading_turn_end=25.0, flow_crossing_gap=True)

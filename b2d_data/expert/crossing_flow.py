@@ -6,13 +6,18 @@ with boxes that grow once the ego drives faster than 5 m/s, accept a gap standin
 and the ego brakes where it then stands, on the flow's path (seed 97, SignalizedJunctionLeftTurn: struck while
 standing there, after which the flow stopped for good, TickRuntime). Here, for a crossing flow's cars:
 
-- the ego waits where its box stays ``margin`` m clear of every crossing car's path (the *line*);
+- the ego waits short of where its box would come within ``flow_hold_margin`` m of a crossing car's path (the
+  *line*), as short of a red light's;
 - it goes when its forecast at the target speed (the PDM-Lite ego forecast, real box) clears every crossing car's
-  real box driven along its hinted path (the cars' own plan), each lengthened by ``accept_time`` s of its speed at
-  both ends;
-- once braking would no longer stop it short of a crossing path it is committed: it drives on while that forecast
-  clears the cars by ``keep_time`` s (less than ``accept_time``: a gap taken is not refused halfway), and brakes
-  only when it does not.
+  real box driven along its hinted path (the cars' own plan), each lengthened by ``flow_crossing_accept_time`` s
+  of its speed at both ends;
+- once braking would no longer stop it short of a crossing path it is committed and drives on: standing there it
+  would be struck by this car or a later one (LB2.0's flow then stops for good), or stand in another flow's way
+  (InterurbanAdvancedActorFlow 101150002 on Town100, seed 101: it braked in the junction for a crossing car and was
+  struck from behind by the flow it was turning into);
+- while such a flow is within reach the ego's target speed is at least the fastest crossing car's, within the speed
+  limit and the junction cap (``Expert.run_step``): at 0.72 x 40 km/h it spent ~1.4 s on a left turn's oncoming lane,
+  longer than any gap a 10 m/s flow 22-26 m apart leaves.
 """
 
 from __future__ import annotations

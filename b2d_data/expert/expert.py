@@ -429,9 +429,13 @@ class Expert:
         e = ego.bounding_box.extent
         committed = any(float(box_clearance(stop.centres[-1:, :2], stop.yaws[-1:], (e.x, e.y),
                                             densify(paths[v.id]))[0]) < v.bounding_box.extent.y for v in cars)
-        seconds = cfg.flow_crossing_keep_time if committed else cfg.flow_crossing_accept_time
+        if committed:
+            # it drives on: standing on the flow's path it would be struck by this car or a later one, or stand in
+            # another flow's way (InterurbanAdvancedActorFlow 101150002, Town100, seed 101)
+            return Crossing(frozenset(lines), (), min(lines[v.id] for v in cars), True)
         go = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames),
                           ego, cfg.commit_margin)
+        seconds = cfg.flow_crossing_accept_time
         blocking = colliding(go, [lengthened(t, v, seconds) for t, v in zip(tracks, cars)])
         return Crossing(frozenset(lines), tuple(blocking), min(lines[v.id] for v in cars), committed)
 

@@ -109,3 +109,15 @@ def test_an_ego_that_cannot_stop_short_of_the_lane_is_committed(make_route, make
     far = make_vehicle(8, LANE_X, -60.0, yaw=90.0, speed=10.0, role="scenario")
     got = _decide(route, ego, [far])
     assert got.committed and got.line == 0.0 and got.blocking == ()
+
+
+def test_a_committed_ego_drives_on_even_before_a_car(make_route, make_vehicle):
+    route = make_route(100.0, CFG)
+    route.index = 80
+    ego = make_vehicle(0, 8.0, 0.0, speed=8.0)  # committed, as above
+    # a car 10 m short of the route at 10 m/s is within 1.0 + 2.4 of it from 0.66 s on, while the ego (front at
+    # 10.4 m, 8 m/s) is on its band 11.1-13.1 (centre 8.7-15.5) from ~0.1 s to ~0.9 s: the forecasts meet, but
+    # standing there instead the ego would be struck by this car or the next, so it keeps going (nothing to brake for)
+    near = make_vehicle(7, LANE_X, -10.0, yaw=90.0, speed=10.0, role="scenario")
+    got = _decide(route, ego, [near])
+    assert got.committed and got.blocking == ()

@@ -156,8 +156,9 @@ class Expert:
                           if flows and paths and cfg.flow_crossing_gap else {})  # fmt: skip
         if crossing_lines:
             # A deviation from PDM-Lite: a flow that never yields is crossed at least at its own speed (within the
-            # junction cap): at 0.72 x 40 km/h the ego spends ~1.4 s on a left turn's oncoming lane, and a 10 m/s
-            # flow 22-26 m apart never leaves that long a gap (SignalizedJunctionLeftTurn, seed 97).
+            # speed limit and the junction cap): at 0.72 x 40 km/h the ego spends ~1.4 s on a left turn's oncoming
+            # lane, and a 10 m/s flow 22-26 m apart never leaves that long a gap (SignalizedJunctionLeftTurn 97310002
+            # on Town100, seed 97).
             fastest = max(snapshot.actors[i].speed() for i in crossing_lines)
             target_speed = max(target_speed, min(fastest, speed_limit, lane_change_cap, cfg.max_speed_in_junction))
         if gate is not None:
@@ -422,7 +423,6 @@ class Expert:
         if not cars:
             return Crossing(frozenset(lines))
         frames = int(cfg.fps * cfg.commit_forecast_length)
-        tracks = [along_path(cfg, t, v, paths[v.id]) for t, v in zip(forecast_vehicles(cfg, cars, frames, False), cars)]
         # committed: a full brake from now on would leave the ego's box on a crossing car's path
         stop = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames,
                                   braking=True)
@@ -433,11 +433,13 @@ class Expert:
             # it drives on: standing on the flow's path it would be struck by this car or a later one, or stand in
             # another flow's way (InterurbanAdvancedActorFlow 101150002, Town100, seed 101)
             return Crossing(frozenset(lines), (), min(lines[v.id] for v in cars), True)
+        # the cars as their agents drive them: along their paths at their speeds
+        tracks = [along_path(cfg, t, v, paths[v.id]) for t, v in zip(forecast_vehicles(cfg, cars, frames, False), cars)]
         go = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames),
                           ego, cfg.commit_margin)
         seconds = cfg.flow_crossing_accept_time
         blocking = colliding(go, [lengthened(t, v, seconds) for t, v in zip(tracks, cars)])
-        return Crossing(frozenset(lines), tuple(blocking), min(lines[v.id] for v in cars), committed)
+        return Crossing(frozenset(lines), tuple(blocking), min(lines[v.id] for v in cars), False)
 
     def _conflict_hold(self, ego: ActorState, route: DenseRoute, paths: list[np.ndarray]) -> float | None:
         """Metres the ego's front may still drive before its box would come within ``flow_hold_margin`` m of a flow

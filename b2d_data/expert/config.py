@@ -163,6 +163,13 @@ class ExpertConfig:
     #: a deviation from PDM-Lite): from 15-20 m back a 14 m/s flow 30 m apart never leaves a gap long enough.
     flow_hold_range: float = 25.0
     flow_hold_margin: float = 1.0
+    #: A flow whose cars' hinted paths cross the route has its own gap acceptance (``expert/crossing_flow.py``; a
+    #: deviation from PDM-Lite, on in :meth:`for_builtin`): the ego waits short of where its box would come within
+    #: ``flow_hold_margin`` m of their paths, goes when its forecast clears every car's real box lengthened by
+    #: ``flow_crossing_accept_time`` s of its speed at each end, and drives on once it can no longer stop short of a
+    #: path; while such a flow is within reach its target speed is at least the fastest crossing car's.
+    flow_crossing_gap: bool = False
+    flow_crossing_accept_time: float = 0.1
 
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this
@@ -265,7 +272,9 @@ class ExpertConfig:
         cone nearest the flow's source (PDM-Lite: 10 m), i.e. 10 m past the source: invading cars are born there
         until the ego has passed it, and with the shift ending 5 m before it the ego and a car just born in a bend
         stood nose to nose until TickRuntime (routes 83160006-08 on Town101, seed 83).
+
+        A flow that crosses the route gets its own gap acceptance (``flow_crossing_gap``, ``expert/crossing_flow.py``).
         """
         extra = {**cls().extra_length_two_ways, **BUILTIN_EXTRA_LENGTH_TWO_WAYS}
         return cls(extra_length_two_ways=extra, invading_turn_fence_margin=0.0, invading_turn_extra_shift=0.3,
-                   invading_turn_end=25.0)
+                   invading_turn_end=25.0, flow_crossing_gap=True)

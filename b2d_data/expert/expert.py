@@ -18,6 +18,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from b2d_data.expert.config import ExpertConfig
+from b2d_data.expert.crossing_flow import (
+    NO_CROSSING,
+    ROUTE_STEP,
+    Crossing,
+    box_clearance,
+    crossing_cars,
+    densify,
+    lengthened,
+)
 from b2d_data.expert.forecasting import (
     along_path,
     colliding,
@@ -143,6 +152,15 @@ class Expert:
             # or its cars run into the ego from behind (EnterActorFlow's 12-14 m/s flows on 40 km/h roads).
             target_speed = min(keep_up, lane_change_cap, max(target_speed, cfg.max_speed_in_junction))
 
+        crossing_lines = (self._crossing_lines(snapshot, ego, route, paths, target_speed)
+                          if flows and paths and cfg.flow_crossing_gap else {})  # fmt: skip
+        if crossing_lines:
+            # A deviation from PDM-Lite: a flow that never yields is crossed at least at its own speed (within the
+            # speed limit and the junction cap): at 0.72 x 40 km/h the ego spends ~1.4 s on a left turn's oncoming
+            # lane, and a 10 m/s flow 22-26 m apart never leaves that long a gap (SignalizedJunctionLeftTurn 97310002
+            # on Town100, seed 97).
+            fastest = max(snapshot.actors[i].speed() for i in crossing_lines)
+            target_speed = max(target_speed, min(fastest, speed_limit, lane_change_cap, cfg.max_speed_in_junction))
         if gate is not None:
             target_speed = min(target_speed, gate.step(snapshot.vehicles(), ego, route, target_speed).target_speed)
         if flows:
@@ -154,7 +172,8 @@ class Expert:
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
         else:
-            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows, paths)
+            hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows, paths,
+                                    crossing_lines)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
         merging = merge_hint(hints)
         if merging is not None and not obstacle.keep_driving:
@@ -259,7 +278,8 @@ class Expert:
     # -- hazards -----------------------------------------------------------------------------------------------
     def _hazards(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,
                  reduced_by: ReducedBy | None, flows: bool = False,
-                 paths: Mapping[int, np.ndarray] | None = None) -> _Hazards:
+                 paths: Mapping[int, np.ndarray] | None = None,
+                 crossing_lines: Mapping[int, float] | None = None) -> _Hazards:
         """Target speeds for every hazard class and their minimum (§1.6–1.7); ``brake`` when it is 0."""
         cfg = self.config
         ego_loc = _xyz(ego)
@@ -289,14 +309,19 @@ class Expert:
                                            distance)
 
         ego_track = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
-        skip = set() if near_lc else leading | trailing
+        # a flow crossing the route has its own gap acceptance (crossing_flow.py): its cars leave the checks below
+        crossing = (self._crossing_flow(ego, route, [v for v in nearby if v.id in crossing_lines], crossing_lines,
+                                        initial_speed, paths)
+                    if crossing_lines and paths else NO_CROSSING)  # fmt: skip
+        skip = (set() if near_lc else leading | trailing) | crossing.cars
         # in a committed route lane change the cars behind are left to brake for the ego (lane_change.py)
         checked = [v for v in nearby if v.id not in skip and not self.lane_changes.yields_to_ego(ego, v)]
         tracks = forecast_vehicles(cfg, checked, frames, near_lc)
         by_id = {v.id: v for v in checked}
         speed_bicycle = speed_vehicle = speed_walker = initial_speed
         hits = colliding(ego_track, tracks)
-        flow_hits, drive_on = (self._flow_cars(ego, route, nearby, leading, set(hits), initial_speed, paths)
+        flow_hits, drive_on = (self._flow_cars(ego, route, [v for v in nearby if v.id not in crossing.cars], leading,
+                                               set(hits), initial_speed, paths)
                                if flows else (set(), set()))  # fmt: skip
         by_id.update({v.id: v for v in nearby})
         # flow cars only the long forecast meets and whose paths join the route: wait for them just short of their
@@ -304,7 +329,7 @@ class Expert:
         joining = ({i for i in flow_hits - set(hits) if i in paths and self._joins_route(route, paths[i])}
                    if flows and paths else set())  # fmt: skip
         hold = self._conflict_hold(ego, route, [paths[i] for i in joining]) if joining else None
-        hits = sorted((set(hits) | flow_hits) - drive_on,
+        hits = sorted((set(hits) | flow_hits | set(crossing.blocking)) - drive_on,
                       key=lambda i: float(np.linalg.norm(_xyz(by_id[i]) - ego_loc)))  # fmt: skip
         for actor_id in hits:
             actor = by_id[actor_id]
@@ -323,6 +348,10 @@ class Expert:
                 s = 0.0
                 if actor_id in joining and hold is not None:
                     s = idm_target_speed(cfg, initial_speed, speed, 0.0, 0.0, hold, cfg.idm_red_light_s0,
+                                         cfg.idm_red_light_T)
+                elif actor_id in crossing.blocking and not crossing.committed and crossing.line:
+                    # wait short of the line as at a red light's: the run-up takes the ego across the lane sooner
+                    s = idm_target_speed(cfg, initial_speed, speed, 0.0, 0.0, crossing.line, cfg.idm_red_light_s0,
                                          cfg.idm_red_light_T)
                 if s == 0.0 and not result.vehicle_hazard:
                     result.vehicle_hazard, result.vehicle_id = True, actor.id
@@ -367,6 +396,50 @@ class Expert:
             result.stop_sign_hazard = True
         result.brake = target == 0.0
         return result
+
+    def _crossing_lines(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute,
+                        paths: Mapping[int, np.ndarray], target_speed: float) -> dict[int, float]:
+        """The moving flow cars within ``detection_radius`` whose hinted paths cross the route within reach of the
+        long forecast (and do not join it): id → metres the ego may drive before its box comes within
+        ``flow_hold_margin`` m of that car's path (crossing_flow.py)."""
+        cfg = self.config
+        moving = [v for v in snapshot.vehicles() if v.role_name == _SCENARIO_ROLE and v.id in paths
+                  and v.speed() >= cfg.other_vehicle_slow_speed and valid_vehicle(v)
+                  and v.location.distance_2d(ego.location) < cfg.detection_radius
+                  and not self._joins_route(route, paths[v.id])]  # fmt: skip
+        if not moving:
+            return {}
+        fastest = max([target_speed, ego.speed(), *(v.speed() for v in moving)])
+        reach = max(cfg.flow_hold_range, cfg.commit_forecast_length * fastest + 10.0)
+        step = max(1, round(ROUTE_STEP * cfg.points_per_meter))
+        end = route.index + cfg.points(reach)
+        return crossing_cars(route.points[route.index : end : step], route.headings[route.index : end : step], ego,
+                             moving, paths, cfg.flow_hold_margin)
+
+    def _crossing_flow(self, ego: ActorState, route: DenseRoute, cars: list[ActorState], lines: Mapping[int, float],
+                       initial_speed: float, paths: Mapping[int, np.ndarray]) -> Crossing:
+        """The gap acceptance across the crossing flow ``cars`` (their ``lines``, see :meth:`_crossing_lines`)."""
+        cfg = self.config
+        if not cars:
+            return Crossing(frozenset(lines))
+        frames = int(cfg.fps * cfg.commit_forecast_length)
+        # committed: a full brake from now on would leave the ego's box on a crossing car's path
+        stop = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames,
+                                  braking=True)
+        e = ego.bounding_box.extent
+        committed = any(float(box_clearance(stop.centres[-1:, :2], stop.yaws[-1:], (e.x, e.y),
+                                            densify(paths[v.id]))[0]) < v.bounding_box.extent.y for v in cars)
+        if committed:
+            # it drives on: standing on the flow's path it would be struck by this car or a later one, or stand in
+            # another flow's way (InterurbanAdvancedActorFlow 101150002, Town100, seed 101)
+            return Crossing(frozenset(lines), (), min(lines[v.id] for v in cars), True)
+        # the cars as their agents drive them: along their paths at their speeds
+        tracks = [along_path(cfg, t, v, paths[v.id]) for t, v in zip(forecast_vehicles(cfg, cars, frames, False), cars)]
+        go = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames),
+                          ego, cfg.commit_margin)
+        seconds = cfg.flow_crossing_accept_time
+        blocking = colliding(go, [lengthened(t, v, seconds) for t, v in zip(tracks, cars)])
+        return Crossing(frozenset(lines), tuple(blocking), min(lines[v.id] for v in cars), False)
 
     def _conflict_hold(self, ego: ActorState, route: DenseRoute, paths: list[np.ndarray]) -> float | None:
         """Metres the ego's front may still drive before its box would come within ``flow_hold_margin`` m of a flow

@@ -4,7 +4,8 @@
     python -m baselines.train --model tcp --data corpus/ --out runs/tcp --epochs 30 --device cuda --time-budget 500
 
 ``--time-budget S`` stops before an epoch that would end past S seconds; run the same command with ``--resume`` to
-continue (it also reuses the cached training tensors). ``runs/<model>/last.pt`` is what the agents load.
+continue (it also reuses the cached training tensors). ``runs/<model>/best.pt`` (lowest val loss; written when the corpus has a val split) or else ``last.pt`` is what
+the chain's agents load.
 """
 
 from __future__ import annotations
@@ -141,6 +142,12 @@ def plot_curve(history: list[dict[str, float]], path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def is_best(history: list[dict[str, float]]) -> bool:
+    """Whether the last epoch of ``history`` has the lowest validation loss so far (False without validation)."""
+    vals = [h["val"] for h in history if "val" in h]
+    return bool(vals) and "val" in history[-1] and history[-1]["val"] <= min(vals)
+
+
 def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
     """Run (or continue) training; returns the final checkpoint dict."""
     started = time.monotonic()
@@ -239,6 +246,11 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict[str, Any]:
         tmp.replace(cfg.out / f"epoch_{epoch:03d}.pt")
         torch.save(ckpt, tmp)
         tmp.replace(last)
+        if is_best(history):
+            # A small corpus over-fits within a few epochs (val loss rising while train falls): the agents drive
+            # best.pt, the epoch of lowest val loss, where there is one.
+            torch.save(ckpt, tmp)
+            tmp.replace(cfg.out / "best.pt")
         logger.info("%s epoch %d/%d: train %.4f%s (%.1f s)", cfg.model, epoch, cfg.epochs, row["train"],
                     f", val {row['val']:.4f}" if "val" in row else "", epoch_seconds)  # fmt: skip
         plot_curve(history, cfg.curve or cfg.out / "loss.png", f"{cfg.model}: loss per epoch")

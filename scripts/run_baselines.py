@@ -217,13 +217,20 @@ def stage_train(args: argparse.Namespace, model: str, deadline: Deadline) -> boo
     return int(torch.load(last, map_location="cpu", weights_only=False)["epoch"]) >= epochs
 
 
+def checkpoint_of(work: Path, agent: str) -> Path:
+    """The checkpoint an agent drives: ``best.pt`` (lowest val loss) where training wrote one, else ``last.pt``."""
+    folder = work / "train" / agent
+    best = folder / "best.pt"
+    return best if best.is_file() else folder / "last.pt"
+
+
 def agent_args(args: argparse.Namespace, agent: str) -> list[str]:
     """``--agent`` / ``--agent-config`` of one evaluated agent."""
     if agent == "expert":
         return ["--agent", "expert"]
     if agent == "route_follower":
         return ["--agent", str(AGENT_FILES[agent]), "--agent-config", f"speed={args.follower_speed}"]
-    config = f"ckpt={(args.work / 'train' / agent / 'last.pt').resolve()}"
+    config = f"ckpt={checkpoint_of(args.work, agent).resolve()}"
     if agent == "tcp":
         config += f",planner={args.tcp_planner}"
     return ["--agent", str(AGENT_FILES[agent]), "--agent-config", config]
@@ -246,7 +253,7 @@ def stage_eval(args: argparse.Namespace, routes: Path, deadline: Deadline) -> bo
     complete = True
     for agent in args.agents:
         out = args.work / "eval" / agent
-        retire_if_older(out, out / "eval.json", args.work / "train" / agent / "last.pt")
+        retire_if_older(out, out / "eval.json", checkpoint_of(args.work, agent))
         if eval_done(out):
             log.info("eval %s: done already", agent)
             continue

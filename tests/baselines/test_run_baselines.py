@@ -43,3 +43,12 @@ def test_eval_done_reads_progress(tmp_path: Path) -> None:
     assert not rb.eval_done(tmp_path)
     (tmp_path / "results.json").write_text(json.dumps({"_checkpoint": {"progress": [3, 3]}}))
     assert rb.eval_done(tmp_path)
+
+
+def test_agents_drive_the_best_checkpoint_where_there_is_one(tmp_path: Path) -> None:
+    folder = tmp_path / "train" / "tcp"
+    folder.mkdir(parents=True)
+    (folder / "last.pt").write_text("x")
+    assert rb.checkpoint_of(tmp_path, "tcp") == folder / "last.pt"
+    (folder / "best.pt").write_text("y")
+    assert rb.checkpoint_of(tmp_path, "tcp") == folder / "best.pt"

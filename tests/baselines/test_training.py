@@ -12,7 +12,7 @@ import torch
 from baselines.data import load_or_extract
 from baselines.features import ADMLP_INPUT_DIM, PoseHistory, admlp_input, tcp_state
 from baselines.models import ADMLP, TCPConfig, TCPSmall
-from baselines.train import TrainConfig, admlp_loss, load_checkpoint, tcp_loss, train
+from baselines.train import TrainConfig, admlp_loss, is_best, load_checkpoint, tcp_loss, train
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +105,12 @@ def test_checkpoint_resume_restores_the_epoch(corpus: Path, tmp_path: Path) -> N
     assert resumed["history"][:2] == first["history"]
     model, ckpt = load_checkpoint(out / "last.pt")
     assert ckpt["epoch"] == 3 and isinstance(model, ADMLP)
+
+
+def test_best_epoch_is_the_lowest_val_loss_so_far() -> None:
+    # val 2.4, 2.2, 2.3 (the TCP curve of the GPU run rose after its 4th epoch): epochs 1 and 2 each improve on what
+    # came before, epoch 3 does not; a tie keeps the later epoch; without validation no epoch is "best".
+    history = [{"epoch": 1.0, "val": 2.4}, {"epoch": 2.0, "val": 2.2}, {"epoch": 3.0, "val": 2.3}]
+    assert [is_best(history[: k + 1]) for k in range(3)] == [True, True, False]
+    assert is_best([*history, {"epoch": 4.0, "val": 2.2}])
+    assert not is_best([{"epoch": 1.0, "train": 1.0}])

@@ -170,6 +170,10 @@ class ExpertConfig:
     #: path; while such a flow is within reach its target speed is at least the fastest crossing car's.
     flow_crossing_gap: bool = False
     flow_crossing_accept_time: float = 0.1
+    #: The scenario types whose flows get that gap acceptance: the unprotected left turns across an oncoming flow it
+    #: was built for. On seed 131 (training ranges) it cost CrossingBicycleFlow (Town101 131060002, TickRuntime) and
+    #: EnterActorFlow (131080008, outside_route_lanes) a route each that the older checks pass.
+    flow_crossing_types: tuple[str, ...] = ("SignalizedJunctionLeftTurn", "NonSignalizedJunctionLeftTurn")
 
     # --- lights and stop signs (§1.2, §1.7) ---
     traffic_light_lookahead: float = 5.0  # a route point "sees" a light governing its lane within this

@@ -27,8 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from b2d_data.expert.config import ExpertConfig
 from b2d_data.expert.forecasting import BoxTrack
-from b2d_data.sim.api import ActorState
+from b2d_data.sim.api import ActorState, ScenarioHint
 
 #: Spacing (m) of the path points the clearance is measured to (its error is at most half of it).
 PATH_STEP = 0.25
@@ -109,3 +110,11 @@ def crossing_cars(route_points: np.ndarray, route_headings: np.ndarray, ego: Act
         if line is not None:
             out[car.id] = line
     return out
+
+
+def crossing_flow_paths(cfg: ExpertConfig, hints: Iterable[ScenarioHint]) -> dict[int, np.ndarray]:
+    """The hinted paths of the flows that get this gap acceptance: those of ``cfg.flow_crossing_types`` (none while
+    ``cfg.flow_crossing_gap`` is off)."""
+    if not cfg.flow_crossing_gap:
+        return {}
+    return {k: v for h in hints if h.scenario_type in cfg.flow_crossing_types for k, v in h.paths.items()}

@@ -19,13 +19,7 @@ import numpy as np
 
 from b2d_data.expert.config import ExpertConfig
 from b2d_data.expert.crossing_flow import (
-    NO_CROSSING,
-    ROUTE_STEP,
-    Crossing,
-    box_clearance,
-    crossing_cars,
-    densify,
-    lengthened,
+    Crossing, NO_CROSSING, ROUTE_STEP, box_clearance, crossing_cars, crossing_flow_paths, densify, lengthened,
 )
 from b2d_data.expert.forecasting import (
     along_path,
@@ -152,8 +146,9 @@ class Expert:
             # or its cars run into the ego from behind (EnterActorFlow's 12-14 m/s flows on 40 km/h roads).
             target_speed = min(keep_up, lane_change_cap, max(target_speed, cfg.max_speed_in_junction))
 
-        crossing_lines = (self._crossing_lines(snapshot, ego, route, paths, target_speed)
-                          if flows and paths and cfg.flow_crossing_gap else {})  # fmt: skip
+        crossing_paths = crossing_flow_paths(cfg, hints)
+        crossing_lines = (self._crossing_lines(snapshot, ego, route, crossing_paths, target_speed)
+                          if flows and crossing_paths else {})  # fmt: skip
         if crossing_lines:
             # A deviation from PDM-Lite: a flow that never yields is crossed at least at its own speed (within the
             # speed limit and the junction cap): at 0.72 x 40 km/h the ego spends ~1.4 s on a left turn's oncoming

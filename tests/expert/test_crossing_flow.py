@@ -121,3 +121,15 @@ def test_a_committed_ego_drives_on_even_before_a_car(make_route, make_vehicle):
     near = make_vehicle(7, LANE_X, -10.0, yaw=90.0, speed=10.0, role="scenario")
     got = _decide(route, ego, [near])
     assert got.committed and got.blocking == ()
+
+
+def test_only_the_unprotected_left_turns_get_the_crossing_gap_acceptance():
+    from b2d_data.expert.crossing_flow import crossing_flow_paths
+    from b2d_data.sim.api import ScenarioHint
+
+    left = ScenarioHint("SignalizedJunctionLeftTurn", 0, 0, "right", paths={7: LANE})
+    bikes = ScenarioHint("CrossingBicycleFlow", 0, 0, "right", paths={8: LANE})
+    # seed 131: the rule cost CrossingBicycleFlow and EnterActorFlow a route each, so their flows keep the older
+    # checks; the left turn's car 7 gets it, and nothing does with the rule off (PDM-Lite's own config)
+    assert list(crossing_flow_paths(CFG, [left, bikes])) == [7]
+    assert crossing_flow_paths(ExpertConfig(), [left, bikes]) == {}

@@ -91,6 +91,11 @@ class RouteState:
         extension = self.route_xy[-1] + np.arange(1, 31)[:, None] * tail
         self._ahead_xy = np.concatenate([self.route_xy, extension])
 
+    @classmethod
+    def of_agent(cls, agent: Any) -> RouteState:
+        """The route state of a Leaderboard agent's global plan (dense GPS plan, first GPS and world points)."""
+        return cls(agent._plan_gps_HACK, agent._global_plan[0][0], agent._global_plan_world_coord[0][0])
+
     def local(self, lat: float, lon: float) -> tuple[float, float]:
         """World x, y of a GPS fix."""
         p = self.geo.inverse(float(lat), float(lon))

@@ -54,7 +54,7 @@ class ADMLPAgent(autonomous_agent.AutonomousAgent):
     def run_step(self, input_data: dict, timestamp: float) -> carla.VehicleControl:
         """History → waypoints → control."""
         if self.route is None:
-            self.route = RouteState(self._plan_gps_HACK, self._global_plan[0][0], self._global_plan_world_coord[0][0])
+            self.route = RouteState.of_agent(self)
         ego = self.route.update(input_data)
         past_xy, past_yaw = self.route.history.past()
         x = admlp_input(past_xy, past_yaw, ego.speed, ego.accel, ego.command)

@@ -56,7 +56,7 @@ class RouteFollowerAgent(autonomous_agent.AutonomousAgent):
     def run_step(self, input_data: dict, timestamp: float) -> carla.VehicleControl:
         """Steer along the plan, hold the set speed."""
         if self.route is None:
-            self.route = RouteState(self._plan_gps_HACK, self._global_plan[0][0], self._global_plan_world_coord[0][0])
+            self.route = RouteState.of_agent(self)
         ego = self.route.update(input_data)
         out = self.controller.step(self.planned_waypoints(ego.x, ego.y, ego.yaw), ego.speed, ego.target_point)
         steer, throttle, brake = agent_control(out, ego.speed)

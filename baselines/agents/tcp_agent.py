@@ -81,7 +81,7 @@ class TCPAgent(autonomous_agent.AutonomousAgent):
     def run_step(self, input_data: dict, timestamp: float) -> carla.VehicleControl:
         """Image + measurements → model → control by the chosen planner."""
         if self.route is None:
-            self.route = RouteState(self._plan_gps_HACK, self._global_plan[0][0], self._global_plan_world_coord[0][0])
+            self.route = RouteState.of_agent(self)
         ego = self.route.update(input_data)
         rgb = jpeg_roundtrip(np.asarray(input_data["CAM_FRONT"][1])[:, :, :3])
         dev = self.device

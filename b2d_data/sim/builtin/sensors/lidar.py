@@ -64,6 +64,11 @@ class LidarSweep:
     tags: np.ndarray
     actor_ids: np.ndarray
 
+    @classmethod
+    def empty(cls) -> LidarSweep:
+        """No points (a rig without the LiDAR)."""
+        return cls(np.zeros((0, 3), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
+
 
 class Lidar:
     """Casts the sweep of a :class:`LidarSpec` into a :class:`RayCaster`."""

@@ -344,7 +344,7 @@ class SensorSuite(SensorScene):
         if self.config.lidar:
             sweep = self.lidar.scan(self.caster, poses[LIDAR.sensor_id])
         else:
-            sweep = LidarSweep(np.zeros((0, 3), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
+            sweep = LidarSweep.empty()
         t1 = time.perf_counter()
         radar: dict[str, np.ndarray] = {}
         if self.config.radar:
@@ -370,7 +370,7 @@ class SensorSuite(SensorScene):
         if flight.lidar is not None:
             sweep = self.lidar.sweep_of(self.caster.collect(flight.lidar))
         else:
-            sweep = LidarSweep(np.zeros((0, 3), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
+            sweep = LidarSweep.empty()
         t1 = time.perf_counter()
         radar = self._collect_radars(tick, flight.radars) if flight.radars is not None else {}
         return sweep, radar, flight.lidar_s + t1 - t0, flight.radar_s + time.perf_counter() - t1

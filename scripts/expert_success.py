@@ -7,7 +7,8 @@ infraction other than min-speed) with the main failure reasons, and checks the â
     python scripts/expert_success.py [--routes-per-scenario 20] [--workers 2] [--params bench2drive220] [--out DIR]
 
 ``--params`` picks the parameter ranges of the generated routes: ``training`` (LB2.0's routes_training.xml, the
-default) or ``bench2drive220`` (the evaluation routes' narrower ranges).
+default) or ``bench2drive220`` (the evaluation routes' narrower ranges). ``--direction left`` draws only that side of
+the types that draw a ``direction`` (the kerb-side types' left needs ``--towns downtown``, Town104's one-way streets).
 
 Route-file mode: the routes of a Leaderboard route file whose scenario type is one of those and whose town has an
 OpenDRIVE file in ``--xodr-dir``; prints one row per route.

@@ -50,7 +50,7 @@ _ALL_PRESET_LAYOUTS: tuple[str, ...] = (
 )  # fmt: skip
 ALL_LAYOUTS: tuple[str, ...] = (*_ALL_PRESET_LAYOUTS, ONE_WAY)
 
-#: The preset a caller gets when it does not care: one town holding every layout.
+#: The preset a caller gets when it does not care: one town holding every layout but the one-way street.
 DEFAULT_PRESET = "all"
 
 

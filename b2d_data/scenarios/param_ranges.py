@@ -27,7 +27,8 @@ Where the training set departs from a plain min/max of the file:
   kerb (a sidewalk, or a parking lane): of the generated towns only the ``downtown`` preset (Town104) has one
   (its one-way streets). In a town without one a left draw finds no place and the route is drawn again at the
   next place (``placement.make_routes`` logs it); ``make_routes(..., direction="left")`` draws that side only,
-  which a ``b2d-collect --preset`` run uses to send its left-drawn clips of these types to Town104.
+  which ``b2d-collect`` (``--preset``, and ``--scenario`` without ``--town``) uses to send its left draws of these
+  types to Town104.
 - DynamicObjectCrossing's ``blocker_model`` is drawn as often as the file has each model, with the nearest props
   of our blueprint library for the three it lacks (:data:`~b2d_data.scenarios.catalog.actor_choices.
   TRAINING_BLOCKER_MODELS`).

@@ -7,7 +7,8 @@ infraction other than min-speed) with the main failure reasons, and checks the â
     python scripts/expert_success.py [--routes-per-scenario 20] [--workers 2] [--params bench2drive220] [--out DIR]
 
 ``--params`` picks the parameter ranges of the generated routes: ``training`` (LB2.0's routes_training.xml, the
-default) or ``bench2drive220`` (the evaluation routes' narrower ranges).
+default) or ``bench2drive220`` (the evaluation routes' narrower ranges). ``--direction left`` draws only that side of
+the types that draw a ``direction`` (the kerb-side types' left needs ``--towns downtown``, Town104's one-way streets).
 
 Route-file mode: the routes of a Leaderboard route file whose scenario type is one of those and whose town has an
 OpenDRIVE file in ``--xodr-dir``; prints one row per route.
@@ -62,9 +63,16 @@ BAR = 0.9
 
 
 def generated_tasks(
-    scenarios: list[str], per_scenario: int, presets: list[str], seed: int, out: Path, params: str = "training"
+    scenarios: list[str],
+    per_scenario: int,
+    presets: list[str],
+    seed: int,
+    out: Path,
+    params: str = "training",
+    direction: str | None = None,
 ) -> tuple[list[RouteTask], dict[str, str]]:
-    """``per_scenario`` routes per scenario, split over the presets that hold its layout; also placement errors."""
+    """``per_scenario`` routes per scenario, split over the presets that hold its layout (``direction``: only that
+    drawn side); also placement errors."""
     from b2d_data.scenarios import placement
 
     towns = {p: TownSource(preset=p).materialise(out) for p in presets}
@@ -80,7 +88,8 @@ def generated_tasks(
             share = -(-remaining // len(usable))  # ceil: the first presets take the remainder
             p = usable.pop(0)
             try:
-                routes += [(p, r) for r in placement.make_routes(maps[p], scenario, share, seed, params=params)]
+                made = placement.make_routes(maps[p], scenario, share, seed, params=params, direction=direction)
+                routes += [(p, r) for r in made]
                 remaining -= share
                 placed.append(p)
             except placement.PlacementError as exc:
@@ -92,7 +101,9 @@ def generated_tasks(
             p = placed[0]
             have = sum(1 for q, _ in routes if q == p)
             try:
-                more = placement.make_routes(maps[p], scenario, have + remaining, seed, params=params)[have:]
+                more = placement.make_routes(
+                    maps[p], scenario, have + remaining, seed, params=params, direction=direction
+                )[have:]
                 routes += [(p, r) for r in more]
                 remaining -= len(more)
                 errors.pop(scenario, None)
@@ -185,6 +196,12 @@ def main(argv: list[str] | None = None) -> int:
         help="parameter ranges of generated routes (default training: LB2.0 routes_training.xml)",
     )
     p.add_argument(
+        "--direction",
+        choices=("right", "left"),
+        default=None,
+        help="generated routes draw only this side of 'direction' (types that draw it; e.g. left on --towns downtown)",
+    )
+    p.add_argument(
         "--only",
         action="append",
         default=[],
@@ -212,8 +229,9 @@ def main(argv: list[str] | None = None) -> int:
             )
             return 2
     else:
+        presets = args.towns.split(",")
         tasks, errors = generated_tasks(
-            scenarios, args.routes_per_scenario, args.towns.split(","), args.seed, out, args.params
+            scenarios, args.routes_per_scenario, presets, args.seed, out, args.params, direction=args.direction
         )
     if args.only:
         wanted = set(args.only)

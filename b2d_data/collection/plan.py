@@ -13,6 +13,7 @@ import contextlib
 import difflib
 import logging
 import os
+import tempfile
 import zlib
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -26,6 +27,7 @@ from b2d_data.collection.job import (
     with_weather,
 )
 from b2d_data.collection.towns import (
+    TOWN_SEED,
     TownError,
     TownSource,
     default_preset,
@@ -42,6 +44,7 @@ from b2d_data.scenarios.route_xml import Route
 
 if TYPE_CHECKING:
     from b2d_data.collection.preset_plan import PresetPlan
+    from b2d_data.maps import Map
 
 log = logging.getLogger(__name__)
 
@@ -183,29 +186,116 @@ def _generated_plan(config: CollectConfig) -> CollectionPlan:
     world_map = load_map(town)
     weathers = list(config.weathers) or None
     budget = max(1, config.attempts_per_clip) * config.n
+    # only a town the user did not choose sends a drawn side it has no place for to another generated town
+    sides = _SideTowns(config, world_map) if config.town is None and config.xodr is None else None
+    sources = {world_map.name: town}
     plans = []
     for scenario in scenarios:
         plan = ScenarioPlan(scenario, config.n)
         saved = config.out / PLANNED_ROUTES_DIR / f"{scenario}.xml"
-        routes = _saved_routes(saved, budget, world_map.name) if config.resume else []
+        allowed = {world_map.name, *(sides.towns if sides is not None else ())}
+        routes = _saved_routes(saved, budget, allowed) if config.resume else []
         # The list for the full budget; a town with fewer places still gets the routes the target needs.
         for count in dict.fromkeys((budget, config.n)) if not routes else ():
             try:
-                routes = placement.make_routes(world_map, scenario, count, config.seed, weathers, config.params)
+                if sides is not None:
+                    routes = sides.routes(scenario, count, weathers)
+                else:
+                    routes = placement.make_routes(world_map, scenario, count, config.seed, weathers, config.params)
                 _save_routes(routes, saved)
                 break
             except placement.PlacementError as exc:
                 plan.error = str(exc)
         if routes:
             plan.error = None
-        plan.tasks = [RouteTask(r, town, scenario, route_seed(config.seed, r.id)) for r in routes]
+        for r in routes:
+            if r.town not in sources:
+                sources[r.town] = _materialise(TownSource(preset=_preset_of(r.town)), config.out)
+        plan.tasks = [RouteTask(r, sources[r.town], scenario, route_seed(config.seed, r.id)) for r in routes]
         if plan.error:
             log.warning("%s: %s", scenario, plan.error)
         plans.append(plan)
-    return CollectionPlan(plans, [town], settings_of(config))
+    return CollectionPlan(plans, list(sources.values()), settings_of(config))
 
 
-def _saved_routes(path: Path, budget: int, town: str) -> list[Route]:
+def _preset_of(town: str) -> str:
+    from b2d_data.maps import towngen
+
+    return next(p.name for p in towngen.TOWN_PRESETS.values() if p.town == town)
+
+
+class _SideTowns:
+    """The default town's routes, with the draws of a ``direction`` it has no place for (``left`` of the kerb-side
+    types: a one-way road's left kerb) placed in the first other generated town that has one."""
+
+    def __init__(self, config: CollectConfig, world_map: Map) -> None:
+        from b2d_data.maps import towngen
+
+        self.config, self.map = config, world_map
+        self.towns = [p.town for p in towngen.TOWN_PRESETS.values() if p.town != world_map.name]
+        self._maps: dict[str, Map] = {}
+
+    def _map(self, town: str) -> Map:
+        from b2d_data.maps import load_opendrive, towngen
+
+        if town not in self._maps:
+            # probed in memory: only a town that gets routes is written into the corpus (by the plan's sources)
+            with tempfile.TemporaryDirectory(prefix="b2d_side_town_") as folder:
+                self._maps[town] = load_opendrive(towngen.write_town(_preset_of(town), TOWN_SEED, folder))
+        return self._maps[town]
+
+    def _host(self, scenario: str, side: str) -> Map | None:
+        from b2d_data.scenarios import placement
+
+        for town in self.towns:
+            other = self._map(town)
+            # a town without any place for the type lacks every side too
+            if side not in placement.missing_sides(other, scenario, self.config.params):
+                return other
+        return None
+
+    def routes(self, scenario: str, count: int, weathers: list[int] | None) -> list[Route]:
+        """``count`` routes in attempt order: route ``k`` keeps the side drawn for it (seeded by the type and ``k``);
+        the default town's routes are its first ones for that many (as without the move), renumbered after them."""
+        from b2d_data.scenarios import placement
+        from b2d_data.scenarios.param_ranges import Choice, param_set
+
+        seed, params = self.config.seed, self.config.params
+        spec = param_set(params).ranges(scenario).get("direction")
+        hosts = {}
+        if isinstance(spec, Choice) and len(spec.values) > 1:
+            for side in placement.missing_sides(self.map, scenario, params):
+                host = self._host(scenario, side)
+                if host is not None:
+                    hosts[side] = host
+        if not hosts:
+            return placement.make_routes(self.map, scenario, count, seed, weathers, params)
+        assert isinstance(spec, Choice)
+        drawn = [
+            spec.draw(np.random.default_rng([int(seed), zlib.crc32(scenario.encode("utf-8")), k])) for k in range(count)
+        ]
+        moved = {side: drawn.count(side) for side in hosts}
+        stay = count - sum(moved.values())
+        here = iter(placement.make_routes(self.map, scenario, stay, seed, weathers, params) if stay else [])
+        there = {
+            side: iter(placement.make_routes(hosts[side], scenario, n, seed, weathers, params, direction=side))
+            for side, n in moved.items()
+            if n
+        }
+        log.info("%s: %s of %d route(s) in %s (%s has no place for them)", scenario,
+                 ", ".join(f"{n} {side}" for side, n in moved.items()), count,
+                 "/".join(hosts[side].name for side in moved), self.map.name)  # fmt: skip
+        out, extra = [], stay
+        for side in drawn:
+            if side in there:
+                out.append(replace(next(there[side]), id=placement.route_id(seed, scenario, extra)))
+                extra += 1
+            else:
+                out.append(next(here))
+        return out
+
+
+def _saved_routes(path: Path, budget: int, towns: set[str]) -> list[Route]:
     """The routes planned by an earlier session (so that a resume never depends on a re-run of the placement)."""
     if not path.is_file():
         return []
@@ -214,7 +304,7 @@ def _saved_routes(path: Path, budget: int, town: str) -> list[Route]:
     except CollectError as exc:
         log.warning("ignoring the saved route list: %s", exc)
         return []
-    if len(routes) < budget or any(r.town != town for r in routes):
+    if len(routes) < budget or any(r.town not in towns for r in routes):
         return []
     log.info("using the %d routes planned earlier in %s", len(routes), path)
     return routes

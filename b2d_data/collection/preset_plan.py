@@ -15,10 +15,13 @@ from __future__ import annotations
 import json
 import logging
 import os
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from b2d_data.collection.job import CollectConfig, with_weather
 from b2d_data.collection.plan import (
@@ -31,7 +34,17 @@ from b2d_data.collection.plan import (
     route_seed,
     settings_of,
 )
-from b2d_data.collection.presets import TRAIN, VAL, Composition, PresetError, Slot, assign_towns, compose, interleaved
+from b2d_data.collection.presets import (
+    TRAIN,
+    VAL,
+    Composition,
+    PresetError,
+    Slot,
+    assign_towns,
+    compose,
+    interleaved,
+    move_sides,
+)
 from b2d_data.collection.towns import TownError, TownSource, load_map, route_town
 from b2d_data.format.weather import PRESETS
 from b2d_data.maps import Map
@@ -81,7 +94,9 @@ class _Towns:
         from b2d_data.maps import towngen
 
         self.out = out
-        self.generated = [p.town for p in towngen.TOWN_PRESETS.values()]
+        #: towns any type's clips may move to; ``sided`` also those kept for a drawn side the others lack
+        self.generated = [p.town for p in towngen.TOWN_PRESETS.values() if p.substitute]
+        self.sided = [p.town for p in towngen.TOWN_PRESETS.values()]
         self.shipped = shipped_towns()
         self._sources: dict[str, TownSource] = {}
 
@@ -111,6 +126,7 @@ class _Placer:
     def __init__(self, towns: _Towns, seed: int, params: str) -> None:
         self.towns, self.seed, self.params = towns, seed, params
         self._hosts: dict[tuple[str, str], bool] = {}
+        self._lacking: dict[tuple[str, str], tuple[str, ...]] = {}
 
     def can_host(self, town: str, scenario: str) -> bool:
         """Whether placement builds a route of ``scenario`` in ``town``."""
@@ -123,14 +139,42 @@ class _Placer:
                 self._hosts[key] = False
         return self._hosts[key]
 
-    def routes(self, town: str, scenario: str, n: int) -> list[Route]:
-        """``n`` routes of ``scenario`` in ``town`` (:class:`CollectError` naming the missing layout)."""
+    def has_side(self, town: str, scenario: str, side: str) -> bool:
+        """Whether ``town`` holds a place for ``scenario`` with its ``direction`` drawn as ``side``."""
         from b2d_data.scenarios import placement
 
+        if not self.can_host(town, scenario):
+            return False
+        key = (town, scenario)
+        if key not in self._lacking:
+            self._lacking[key] = placement.missing_sides(self.towns.map(town), scenario, self.params)
+        return side not in self._lacking[key]
+
+    def routes(self, town: str, scenario: str, n: int, side: str | None = None) -> list[Route]:
+        """``n`` routes of ``scenario`` in ``town``, with ``side`` only that ``direction`` (:class:`CollectError`
+        naming the missing layout)."""
+        from b2d_data.scenarios import placement
+
+        pinned = {"direction": side} if side is not None else {}
         try:
-            return placement.make_routes(self.towns.map(town), scenario, n, self.seed, None, self.params)
+            return placement.make_routes(self.towns.map(town), scenario, n, self.seed, None, self.params, **pinned)
         except placement.PlacementError as exc:
             raise CollectError(str(exc)) from None
+
+
+def drawn_sides(slots: Sequence[Slot], params: str, seed: int) -> dict[int, str]:
+    """The ``direction`` each slot of a type that draws one of several sides gets, drawn per slot from the set's
+    weights (seeded by the slot's index and type, so that a slot keeps its side whatever the other slots are)."""
+    from b2d_data.scenarios.param_ranges import Choice, param_set
+
+    ranges = param_set(params)
+    out: dict[int, str] = {}
+    for slot in slots:
+        spec = ranges.ranges(slot.scenario).get("direction")
+        if isinstance(spec, Choice) and len(spec.values) > 1:
+            rng = np.random.default_rng([int(seed), zlib.crc32(slot.scenario.encode("utf-8")), slot.index])
+            out[slot.index] = spec.draw(rng)
+    return out
 
 
 def _slot_routes(slots: Sequence[Slot], routes: Sequence[Route], attempts: int) -> dict[int, list[Route]]:
@@ -162,19 +206,24 @@ def _plan_routes(
         else:
             errors[slot.index] = f"{slot.scenario} cannot be generated yet (no behaviour or placement rule)"
     assigned = assign_towns(usable, placer.can_host, towns.shipped, towns.generated)
-    groups: dict[tuple[str, str], list[Slot]] = {}
+    # each slot keeps to its drawn side; one its town lacks (direction=left: a one-way road's left kerb) moves it
+    assigned, pinned = move_sides(
+        usable, assigned, drawn_sides(usable, config.params, config.seed), placer.has_side, towns.sided
+    )
+    groups: dict[tuple[str, str, str | None], list[Slot]] = {}
     for slot in usable:
         town = assigned[slot.index]
         if town is None:
             errors[slot.index] = f"no town holds a place for {slot.scenario}"
         else:
-            groups.setdefault((town, slot.scenario), []).append(slot)
+            groups.setdefault((town, slot.scenario, pinned.get(slot.index)), []).append(slot)
     routes: dict[int, list[Route]] = {}
     attempts = config.attempts_per_clip
-    for (town, scenario), members in groups.items():
-        log.info("planning %d %s route(s) in %s", len(members) * attempts, scenario, town)
+    for (town, scenario, side), members in groups.items():
+        log.info("planning %d %s route(s) in %s%s", len(members) * attempts, scenario, town,
+                 f" (direction={side})" if side else "")  # fmt: skip
         try:
-            made = placer.routes(town, scenario, len(members) * attempts)
+            made = placer.routes(town, scenario, len(members) * attempts, side)
         except CollectError as exc:
             errors.update({s.index: str(exc) for s in members})
             continue

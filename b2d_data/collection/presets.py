@@ -32,7 +32,7 @@ import json
 import logging
 import math
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from pathlib import Path
@@ -244,6 +244,39 @@ def assign_towns(
         out[slot.index] = options[turn[slot.scenario] % len(options)] if options else None
         turn[slot.scenario] += 1
     return out
+
+
+def move_sides(
+    slots: Sequence[Slot],
+    towns: Mapping[int, str | None],
+    sides: Mapping[int, str],
+    has_side: Callable[[str, str, str], bool],
+    generated: Sequence[str],
+) -> tuple[dict[int, str | None], dict[int, str]]:
+    """Slots whose drawn ``direction`` (``sides``: slot index → side) their town has no place for
+    (``has_side(town, type, side)`` false) move to the first of the ``generated`` towns that has one, in turn per
+    (type, side); returns every slot's town and the side each slot keeps to in it (its drawn one). A slot no town
+    has a place for stays where it was, unpinned (its draw falls back to another side there, logged by the
+    placement)."""
+    out: dict[int, str | None] = dict(towns)
+    pinned: dict[int, str] = {}
+    turn: Counter[tuple[str, str]] = Counter()
+    for slot in sorted(slots, key=lambda s: s.index):
+        side, town = sides.get(slot.index), towns.get(slot.index)
+        if side is None or town is None:
+            continue
+        if has_side(town, slot.scenario, side):
+            pinned[slot.index] = side
+            continue
+        options = [g for g in generated if has_side(g, slot.scenario, side)]
+        if not options:
+            log.warning("slot %d: no town has a place for %s with direction=%s", slot.index, slot.scenario, side)
+            continue
+        key = (slot.scenario, side)
+        out[slot.index] = options[turn[key] % len(options)]
+        pinned[slot.index] = side
+        turn[key] += 1
+    return out, pinned
 
 
 def interleaved(slots: Sequence[Slot]) -> list[Slot]:

@@ -90,7 +90,7 @@ def preset_town_name(preset: str) -> str:
 
 
 def default_preset() -> str:
-    """The preset holding every road layout the scenarios need."""
+    """The preset holding every road layout the scenarios need (but a one-way road's left kerb: preset downtown)."""
     from b2d_data.maps import towngen
 
     return towngen.DEFAULT_PRESET

@@ -24,8 +24,11 @@ Where the training set departs from a plain min/max of the file:
   DynamicObjectCrossing, ParkingCrossingPedestrian, ParkingCutIn and ParkingExit draw left as often as the file
   has it, counting its routes without a ``direction`` as right (the default): 12 of 351, 36 of 126, 27 of 111
   (the 3 typos left out) and 3 of 42; bench2drive220's ParkingCutIn 1 of 5. Left needs a one-way road's left
-  kerb (a sidewalk, or a parking lane): the generated towns' roads are all two-way or ramps, so there a left draw
-  finds no place and the route is drawn again at the next one.
+  kerb (a sidewalk, or a parking lane): of the generated towns only the ``downtown`` preset (Town104) has one
+  (its one-way streets). In a town without one a left draw finds no place and the route is drawn again at the
+  next place (``placement.make_routes`` logs it); ``make_routes(..., direction="left")`` draws that side only,
+  which ``b2d-collect`` (``--preset``, and ``--scenario`` without ``--town``) uses to send its left draws of these
+  types to Town104.
 - DynamicObjectCrossing's ``blocker_model`` is drawn as often as the file has each model, with the nearest props
   of our blueprint library for the three it lacks (:data:`~b2d_data.scenarios.catalog.actor_choices.
   TRAINING_BLOCKER_MODELS`).
@@ -132,6 +135,14 @@ class ParamSet:
         """The values of a categorical parameter (empty when the type does not draw it)."""
         spec = self.ranges(scenario_type).get(name)
         return spec.values if isinstance(spec, Choice) else ()
+
+    def pinned(self, scenario_type: str, name: str, value: str) -> ParamSet:
+        """This set (same name) with ``scenario_type``'s categorical ``name`` fixed to ``value``, one of its values."""
+        if value not in self.choices(scenario_type, name):
+            raise ValueError(f"{scenario_type} draws no {name}={value!r} in the {self.name!r} set")
+        types = dict(self.types)
+        types[scenario_type] = MappingProxyType({**self.ranges(scenario_type), name: Choice((value,))})
+        return ParamSet(self.name, MappingProxyType(types))
 
     def draw(self, scenario_type: str, rng: np.random.Generator) -> dict[str, dict[str, str]]:
         """XML parameters of one scenario, drawn in order (the ``value`` attribute, or ``from``/``to``)."""

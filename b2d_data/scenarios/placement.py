@@ -305,6 +305,23 @@ def find_candidates(town: Map, scenario_type: str, params: str | ParamSet = DEFA
     return found
 
 
+def missing_sides(
+    town: Map,
+    scenario_type: str,
+    params: str | ParamSet = DEFAULT_PARAMS,
+    candidates: Sequence[Candidate] | None = None,
+) -> tuple[str, ...]:
+    """The ``direction`` values the set draws for ``scenario_type`` that no place in ``town`` holds (e.g. ``left`` of
+    the kerb-side types in a town of two-way roads); empty for types without a drawn side."""
+    ranges = param_set(params)
+    spec = _check_type(scenario_type, ranges.name)
+    sides = ranges.choices(scenario_type, "direction")
+    if spec.directions is None or len(sides) < 2:
+        return ()
+    found = find_candidates(town, scenario_type, ranges) if candidates is None else candidates
+    return tuple(side for side in sides if not any(spec.directions[side](c.trigger) for c in found))
+
+
 # ------------------------------------------------------------------------------------------------ parameters
 
 
@@ -501,18 +518,23 @@ def make_routes(
     seed: int = 0,
     weathers: Sequence[int] | None = None,
     params: str | ParamSet = DEFAULT_PARAMS,
+    direction: str | None = None,
 ) -> list[Route]:
     """``n`` routes holding one ``scenario_type`` scenario each, on distinct places while there are enough.
 
     ``weathers`` lists the preset ids to draw from (default: all 23); ``params`` names the parameter ranges
     (:mod:`~b2d_data.scenarios.param_ranges`: ``training``, the default, or ``bench2drive220``). A place too short
-    for the drawn distances is skipped, so long distances come from the towns' longer roads. Raises
-    :class:`PlacementError` when the town lacks the layout (message names it) or no candidate survives the checks.
+    for the drawn distances is skipped, so long distances come from the towns' longer roads. ``direction`` keeps
+    the drawn ``direction`` to one of the set's sides (None: drawn as the set has it; a side the town has no place
+    for is then logged, as its draws end up on the other side). Raises :class:`PlacementError` when the town lacks
+    the layout (message names it) or no candidate survives the checks.
     """
     if n < 0:
         raise ValueError(f"n must be >= 0, got {n}")
     ranges = param_set(params)
     spec = _check_type(scenario_type, ranges.name)
+    if direction is not None:
+        ranges = ranges.pinned(scenario_type, "direction", direction)
     pool = tuple(int(w) for w in weathers) if weathers is not None else WEATHER_IDS
     for w in pool:
         preset(w)  # unknown ids raise here, naming the valid ones
@@ -523,6 +545,14 @@ def make_routes(
         raise PlacementError(
             f"{town.name} has no place for {scenario_type}: layout '{spec.name}' missing ({spec.description})"
         )
+    if direction is None and n > 0:
+        lacking = missing_sides(town, scenario_type, ranges, candidates)
+        if lacking:
+            # the drawn side is redrawn at the next place until one fits: the routes keep to the other side
+            log.warning(
+                "%s has no place for %s with direction=%s (layout: %s); those draws are placed on the other side",
+                town.name, scenario_type, "/".join(lacking), spec.description,
+            )  # fmt: skip
     rng = np.random.default_rng([int(seed), zlib.crc32(scenario_type.encode("utf-8"))])
     order = [int(i) for i in rng.permutation(len(candidates))]
     routes: list[Route] = []

@@ -120,8 +120,8 @@ def scaled_base(tmp_path_factory):
     """base × 0.001 collected at a tiny resolution (routes cut after their trigger); (out, stdout of the run)."""
     real = placement.make_routes
 
-    def short_routes(town, scenario_type, n, seed=0, weathers=None, params="training"):
-        return [_cut_after_trigger(town, r) for r in real(town, scenario_type, n, seed, weathers, params)]
+    def short_routes(town, scenario_type, n, seed=0, weathers=None, params="training", **pinned):
+        return [_cut_after_trigger(town, r) for r in real(town, scenario_type, n, seed, weathers, params, **pinned)]
 
     out = tmp_path_factory.mktemp("preset") / "base"
     with pytest.MonkeyPatch.context() as mp:

@@ -22,6 +22,7 @@ from b2d_data.collection.presets import (
     compose,
     half_up,
     interleaved,
+    move_sides,
     scale,
     slots_of_names,
     spread,
@@ -179,6 +180,46 @@ def test_town_substitution_by_hand():
     # Accident is the 1st type needing a substitute: its round starts at its 1st host (Town100) and goes on
     # Town102, Town100 (slots 0, 1, 5). HardBreakRoute is the 2nd: it starts at its 2nd host, Town101 (slot 4).
     assert towns == {0: "Town100", 1: "Town102", 2: "Town01", 3: "Town04", 4: "Town101", 5: "Town100", 6: None}
+
+
+def test_side_moves_by_hand():
+    slots = [
+        Slot(0, "ParkingCutIn", 1, "", "train", "a"),  # left drawn, Town101 has no left kerb: moves to Town104
+        Slot(1, "ParkingCutIn", 1, "", "train", "b"),  # right: stays, pinned right
+        Slot(2, "ParkingCutIn", 1, "", "train", "c"),  # left: moves, the (type, side)'s 2nd turn: Town105
+        Slot(3, "ParkingExit", 1, "", "train", "d"),  # left: no town has one for ParkingExit: stays, unpinned
+        Slot(4, "HardBreakRoute", 1, "", "train", "e"),  # draws no side
+        Slot(5, "ParkingCutIn", 1, "", "train", "f"),  # left, and already in a town holding it: pinned there
+    ]
+    towns = {0: "Town101", 1: "Town101", 2: "Town100", 3: "Town101", 4: "Town100", 5: "Town104"}
+    sides = {0: "left", 1: "right", 2: "left", 3: "left", 5: "left"}
+    left_kerbs = {("Town104", "ParkingCutIn"), ("Town105", "ParkingCutIn")}
+
+    def has_side(town: str, kind: str, side: str) -> bool:
+        return side == "right" or (town, kind) in left_kerbs
+
+    moved, pinned = move_sides(slots, towns, sides, has_side, ["Town100", "Town101", "Town104", "Town105"])
+    assert moved == {0: "Town104", 1: "Town101", 2: "Town105", 3: "Town101", 4: "Town100", 5: "Town104"}
+    assert pinned == {0: "left", 1: "right", 2: "left", 5: "left"}
+
+
+def test_a_left_drawn_slot_lands_in_the_one_way_town(tmp_path):
+    """Four ParkingCutIn slots; seed 0 draws right, right, left, left for slots 0-3 (27 of 111 left): the right ones
+    stay in Town101 (the only substitute town here), the left ones go to Town104 and keep to the left kerb."""
+    from b2d_data.collection.job import CollectConfig
+    from b2d_data.collection.preset_plan import _plan_routes, _Towns, drawn_sides
+
+    slots = [Slot(i, "ParkingCutIn", None, "", "train", f"ParkingCutIn#{i}") for i in range(4)]
+    assert drawn_sides(slots, "training", 0) == {0: "right", 1: "right", 2: "left", 3: "left"}
+    towns = _Towns(tmp_path)
+    assert "Town104" not in towns.generated and "Town104" in towns.sided
+    towns.generated, towns.sided = ["Town101"], ["Town101", "Town104"]
+    config = CollectConfig(out=tmp_path, preset="uniform", attempts_per_clip=1)
+    assigned, routes, errors = _plan_routes(Composition("t", slots), towns, config)
+    assert errors == {} and assigned == {0: "Town101", 1: "Town101", 2: "Town104", 3: "Town104"}
+    for index, side in ((0, "right"), (1, "right"), (2, "left"), (3, "left")):
+        (route,) = routes[index]
+        assert route.town == assigned[index] and route.scenarios[0].parameter("direction") == side
 
 
 def test_interleaved_order_mixes_types():

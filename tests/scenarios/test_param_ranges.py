@@ -219,10 +219,26 @@ def test_expert_success_script_params_option(monkeypatch):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     seen = []
-    monkeypatch.setattr(module, "generated_tasks", lambda *a: seen.append(a[-1]) or ([], {}))
+    monkeypatch.setattr(module, "generated_tasks", lambda *a, **k: seen.append(a[-1]) or ([], {}))
     monkeypatch.setattr(module, "run_tasks", lambda *a: [])
     module.main(["--scenario", "Accident", "--params", "bench2drive220", "--towns", "all"])
     module.main(["--scenario", "Accident", "--towns", "all"])
     assert seen == ["bench2drive220", "training"]
     with pytest.raises(SystemExit):
         module.main(["--params", "nope"])
+
+
+def test_pinned_keeps_one_side_and_the_other_parameters() -> None:
+    from b2d_data.scenarios.param_ranges import TRAINING
+
+    left = TRAINING.pinned("ParkingCrossingPedestrian", "direction", "left")
+    assert left.name == "training" and left.choices("ParkingCrossingPedestrian", "direction") == ("left",)
+    # the other types and parameters are the set's own (36 of 126 routes draw left unpinned)
+    assert left.choices("ParkingCutIn", "direction") == ("right", "left")
+    assert left.int_range("ParkingCrossingPedestrian", "distance") == TRAINING.int_range(
+        "ParkingCrossingPedestrian", "distance"
+    )
+    rng = np.random.default_rng(0)
+    assert {left.draw("ParkingCrossingPedestrian", rng)["direction"]["value"] for _ in range(20)} == {"left"}
+    with pytest.raises(ValueError, match="opposite"):
+        TRAINING.pinned("ParkingCutIn", "direction", "opposite")

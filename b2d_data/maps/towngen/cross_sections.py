@@ -197,3 +197,27 @@ def rural_minor(w: TownWidths) -> CrossSection:
         LaneSpec("shoulder", 0.5, NO_MARK),
     )
     return CrossSection("rural_minor", side, side, BROKEN_YELLOW, 50.0, "rural", rank=1)
+
+
+def one_way(w: TownWidths, lanes: int = 2) -> CrossSection:
+    """One-way urban street: ``lanes`` driving lanes along +s with a parking lane and a sidewalk on both kerbs.
+
+    Every lane lies right of the reference line (ids -1..-n from the left kerb: sidewalk, parking, driving lanes,
+    parking, sidewalk), as on CARLA Town12's one-way streets: walking left from the leftmost driving lane reaches
+    the left parking lane and sidewalk without crossing the centre line (LB2.0's ``direction="left"``). The
+    reference line runs along the left kerb's outer edge, the lane offset centres the road on it.
+    """
+    driving = [LaneSpec("driving", w.street_lane, BROKEN_WHITE) for _ in range(lanes - 1)]
+    driving.append(LaneSpec("driving", w.street_lane, SOLID_WHITE))
+    right = (
+        LaneSpec("sidewalk", w.sidewalk, CURB),
+        # the left edge line of the leftmost driving lane is this lane's outer border
+        LaneSpec("parking", w.parking, SOLID_WHITE),
+        *driving,
+        LaneSpec("parking", w.parking, CURB),
+        LaneSpec("sidewalk", w.sidewalk, NO_MARK),
+    )
+    total = sum(lane.width for lane in right)
+    return CrossSection(
+        "one_way", right, (), NO_MARK, w.street_speed, "town", rank=2, lane_offset=total / 2.0, crosswalks=True
+    )

@@ -81,10 +81,27 @@ class Arm:
 
     def _side(self, right_side: bool, sign: float) -> list[LaneEnd]:
         sec = self.road.end_section(self.contact)
+        if not right_side and not sec.left:
+            return self._far_kerb(sign)
         out = []
         for lane in sec.right if right_side else sec.left:
             inner, outer = self.road.lane_borders(self.end_s, lane.id)
             out.append(LaneEnd(lane.id, lane.type, abs(outer - inner), sign * inner, sign * outer))
+        return out
+
+    def _far_kerb(self, sign: float) -> list[LaneEnd]:
+        """A one-way road's left kerb (the lanes before its first driving lane, all right of the reference line) as the
+        side facing the other way: centre outward, its borders swapped so that each lane lies right of its inner one."""
+        sec = self.road.end_section(self.contact)
+        kerb = []
+        for lane in sec.right:
+            if lane.type == "driving":
+                break
+            kerb.append(lane)
+        out = []
+        for lane in reversed(kerb):
+            inner, outer = self.road.lane_borders(self.end_s, lane.id)
+            out.append(LaneEnd(lane.id, lane.type, abs(outer - inner), sign * outer, sign * inner))
         return out
 
     def incoming(self) -> list[LaneEnd]:
@@ -284,10 +301,15 @@ class JunctionBuilder:
             sec = arm.road.end_section(arm.contact)
             right_sw = [lane for lane in sec.right if lane.type == "sidewalk"]
             left_sw = [lane for lane in sec.left if lane.type == "sidewalk"]
-            if not right_sw or not left_sw:
+            if not sec.left and len(right_sw) >= 2:
+                # a one-way street: both sidewalks lie right of the reference line; the band spans between them
+                t_left = arm.road.lane_borders(arm.end_s, right_sw[0].id)[1]
+                t_right = arm.road.lane_borders(arm.end_s, right_sw[-1].id)[0]
+            elif not right_sw or not left_sw:
                 continue
-            t_right = arm.road.lane_borders(arm.end_s, right_sw[0].id)[0]
-            t_left = arm.road.lane_borders(arm.end_s, left_sw[0].id)[0]
+            else:
+                t_right = arm.road.lane_borders(arm.end_s, right_sw[0].id)[0]
+                t_left = arm.road.lane_borders(arm.end_s, left_sw[0].id)[0]
             span = t_left - t_right
             # Object frame: hdg = pi/2 puts u across the road (+t) and v along -s; the band lies inside the junction.
             v_near, v_far = (-CROSSWALK_GAP, -CROSSWALK_GAP - CROSSWALK_DEPTH)

@@ -7,7 +7,7 @@ Coordinates are OpenDRIVE metres (x east, y north); grid rows run south from y =
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,7 +32,8 @@ class GridSpec:
 
     Points with three or four neighbours are junctions; the four corner points are rounded bends (radius from
     ``corner_radius``, cross-section from ``corner_sections``) unless listed in ``extra_junctions`` because another
-    district attaches there.
+    district attaches there. ``column_flow`` gives the direction of each column of one-way streets (+1: south, to
+    higher rows; -1: north): its edges are laid so that their lanes (all right of the reference line) run that way.
     """
 
     xs: tuple[float, ...]
@@ -44,6 +45,7 @@ class GridSpec:
     controls: dict[GridPoint, str]
     extra_junctions: frozenset[GridPoint] = frozenset()
     column_bump: float = 0.0
+    column_flow: dict[int, int] = field(default_factory=dict)
 
     def inside(self, p: GridPoint) -> bool:
         """True when the point is on the grid."""
@@ -91,11 +93,17 @@ def add_grid(plan: TownPlan, g: GridSpec) -> None:
                 cs = g.col_sections[p[0]]
                 name = f"{cs.name} column {p[0]} {min(p[1], cur[1])}-{max(p[1], cur[1])}"
             interior_column = not horizontal and not corners and 0 < p[0] < len(g.xs) - 1
+            start, end = p, cur
+            if cs.driving_count(False) == 0 and not horizontal and not corners:
+                if p[0] not in g.column_flow:
+                    raise ValueError(f"column {p[0]} is one-way ({cs.name}): give its direction in column_flow")
+                if (cur[1] - p[1]) * g.column_flow[p[0]] < 0:
+                    start, end = cur, p
             plan.edges.append(
                 EdgeSpec(
                     name=name,
-                    a=grid_name(*p),
-                    b=grid_name(*cur),
+                    a=grid_name(*start),
+                    b=grid_name(*end),
                     section=cs,
                     corners=tuple(Corner(g.xs[k[0]], g.ys[k[1]], g.corner_radius[k]) for k in corners),
                     bump=g.column_bump if interior_column else 0.0,

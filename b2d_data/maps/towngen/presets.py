@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from b2d_data.format.names import CARLA_TOWNS, is_town_name
-from b2d_data.maps.towngen.cross_sections import TownWidths, boulevard, street
+from b2d_data.maps.towngen.cross_sections import TownWidths, boulevard, one_way, street
 from b2d_data.maps.towngen.layouts import (
     GridSpec,
     add_grid,
@@ -41,13 +41,16 @@ STOP_T = "stop_t"  # unsignalised T with a stop sign on the stem
 UNCONTROLLED = "uncontrolled_junction"  # unsignalised, no signs
 HIGHWAY_RAMPS = "highway_ramps"  # >= 2 lanes per direction, an on-ramp (merge) and an off-ramp (diverge)
 INTERURBAN = "interurban"  # rural two-way road with T junctions
+ONE_WAY = "one_way_street"  # one-way road with a parking lane and a sidewalk left of its leftmost lane
 
-ALL_LAYOUTS: tuple[str, ...] = (
+#: The layouts of the "all" preset (every one but ONE_WAY: its town stays as it was before one-way streets existed).
+_ALL_PRESET_LAYOUTS: tuple[str, ...] = (
     TWO_WAY, PARKING, SHOULDER_CURVE, MULTI_LANE, BIKE_LANE, SIDEWALK, CROSSWALK, SIGNALIZED_4WAY, SIGNALIZED_T,
     STOP_4WAY, STOP_T, UNCONTROLLED, HIGHWAY_RAMPS, INTERURBAN,
 )  # fmt: skip
+ALL_LAYOUTS: tuple[str, ...] = (*_ALL_PRESET_LAYOUTS, ONE_WAY)
 
-#: The preset a caller gets when it does not care: one town holding every layout.
+#: The preset a caller gets when it does not care: one town holding every layout but the one-way street.
 DEFAULT_PRESET = "all"
 
 
@@ -64,6 +67,9 @@ class TownPreset:
     description: str
     layouts: tuple[str, ...]
     planner: Callable[[TownPlan, np.random.Generator, TownWidths], None]
+    #: ``b2d-collect --preset`` spreads any type's clips over this town (False: only the clips that need a place
+    #: the other towns lack, e.g. the left kerb of a one-way street; their plans stay as they were).
+    substitute: bool = True
 
 
 def _spacings(rng: np.random.Generator, n: int, lo: float, hi: float) -> list[float]:
@@ -163,6 +169,36 @@ def _plan_all(plan: TownPlan, rng: np.random.Generator, w: TownWidths) -> None:
     add_interurban_u(plan, w, rng, _node(plan, 1, 1), _node(plan, 2, 1))
 
 
+def _plan_downtown(plan: TownPlan, rng: np.random.Generator, w: TownWidths) -> None:
+    """4 x 3 grid whose two inner columns are one-way streets in opposite directions (two lanes, parking and a
+    sidewalk on both kerbs); two-way parking streets on top, bottom and round the corners and a plain street across
+    the middle, so that every junction stays reachable from every other."""
+    xs = _positions(_spacings(rng, 3, 250.0, 280.0), 1.0)
+    # longer blocks than the urban grid's: the left-kerb scenarios want up to ~150 m junction-free on a column
+    ys = _positions(_spacings(rng, 2, 240.0, 270.0), -1.0)
+    parking, plain, oneway = street(w, parking=True), street(w), one_way(w)
+    four = ["signal", "stop_minor"]
+    rng.shuffle(four)
+    tees = ["signal", "signal", "stop_minor", "stop_minor", "none", "none"]
+    rng.shuffle(tees)
+    controls = {(1, 1): four[0], (2, 1): four[1]}
+    controls.update(zip([(1, 0), (2, 0), (0, 1), (3, 1), (1, 2), (2, 2)], tees, strict=True))
+    flow = [1, -1]
+    rng.shuffle(flow)
+    add_grid(
+        plan,
+        GridSpec(
+            xs=xs, ys=ys,
+            row_sections=(parking, plain, parking),
+            col_sections=(parking, oneway, oneway, parking),
+            corner_sections={(0, 0): parking, (3, 0): parking, (0, 2): parking, (3, 2): parking},
+            corner_radius=_corner_radii(rng, [(0, 0), (3, 0), (0, 2), (3, 2)]),
+            controls=controls,
+            column_flow={1: flow[0], 2: flow[1]},
+        ),
+    )  # fmt: skip
+
+
 TOWN_PRESETS: dict[str, TownPreset] = {
     p.name: p
     for p in (
@@ -170,7 +206,7 @@ TOWN_PRESETS: dict[str, TownPreset] = {
             "all", "Town100",
             "every layout in one town: street grid with parking, boulevard with bike lanes, highway loop with ramps, "
             "interurban road",
-            ALL_LAYOUTS, _plan_all,
+            _ALL_PRESET_LAYOUTS, _plan_all,
         ),
         TownPreset(
             "urban", "Town101",
@@ -192,6 +228,15 @@ TOWN_PRESETS: dict[str, TownPreset] = {
             "interurban ring road with a side road: a T junction with a stop sign and an uncontrolled one",
             (SHOULDER_CURVE, STOP_T, UNCONTROLLED, INTERURBAN),
             _plan_interurban,
+        ),
+        TownPreset(
+            "downtown", "Town104",
+            "4 x 3 street grid with a pair of one-way streets in opposite directions (two lanes, parking lanes and "
+            "sidewalks on both kerbs) between two-way parking streets; signalised and unsignalised 4-way and T "
+            "junctions (the 4-ways have one-way arms)",
+            (TWO_WAY, PARKING, SIDEWALK, CROSSWALK, SIGNALIZED_T, STOP_4WAY, STOP_T, UNCONTROLLED, MULTI_LANE,
+             ONE_WAY),
+            _plan_downtown, substitute=False,
         ),
     )
 }  # fmt: skip

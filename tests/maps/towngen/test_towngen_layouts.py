@@ -293,6 +293,32 @@ def find_interurban(m: Map) -> str | None:
     return None
 
 
+def _left_kerb(w: Waypoint) -> bool:
+    """A driving lane with no driving lane across the centre line, a parking lane on its left on the same side of
+    the reference line, and a sidewalk left of that (a one-way road's left kerb)."""
+    left = w.get_left_lane()
+    if left is None or left.lane_type != LaneType.PARKING or left.lane_id * w.lane_id <= 0:
+        return False
+    kerb = left.get_left_lane()
+    if kerb is None or kerb.lane_type != LaneType.SIDEWALK or kerb.lane_id * w.lane_id <= 0:
+        return False
+    across = w.get_right_lane()
+    while across is not None:
+        if across.lane_id * w.lane_id < 0 and across.lane_type & LaneType.DRIVING:
+            return False
+        across = across.get_right_lane()
+    return True
+
+
+def find_one_way(m: Map) -> str | None:
+    for w in _street_points(m):
+        if _left_kerb(w):
+            path = _walk(w, 150.0)
+            if path and all(_left_kerb(p) for p in path):
+                return f"road {w.road_id} lane {w.lane_id}: one-way, parking and sidewalk on its left for 150 m"
+    return None
+
+
 DETECTORS: dict[str, Callable[[Map], str | None]] = {
     P.TWO_WAY: find_two_way_street,
     P.PARKING: find_parking,
@@ -308,6 +334,7 @@ DETECTORS: dict[str, Callable[[Map], str | None]] = {
     P.UNCONTROLLED: find_uncontrolled,
     P.HIGHWAY_RAMPS: find_highway_ramps,
     P.INTERURBAN: find_interurban,
+    P.ONE_WAY: find_one_way,
 }
 
 
@@ -357,3 +384,10 @@ def test_written_file_loads_under_its_town_name(maps: dict[str, Map]) -> None:
     for name, m in maps.items():
         assert m.name == TOWN_PRESETS[name].town
         assert isinstance(m.path, Path)
+
+
+def test_only_the_downtown_town_has_a_one_way_left_kerb(maps: dict[str, Map]) -> None:
+    # Town100-103 are all two-way roads and ramps: a lane's left is the opposite lane (or the ramp's shoulder).
+    for name in ("all", "urban", "highway", "interurban"):
+        assert find_one_way(maps[name]) is None, name
+    assert find_one_way(maps["downtown"])

@@ -6,8 +6,11 @@ rendered pixel must match within the 8-bit rounding of the image.
 
 from __future__ import annotations
 
+import hashlib
+import itertools
 import math
 
+import moderngl
 import numpy as np
 import pytest
 
@@ -161,3 +164,67 @@ def test_a_distant_road_gets_the_own_beam_at_its_corners(renderer):
     # against 0.39062 · 0.08698 + 0.60938 · 0.00855 = 0.03919 from the corners: 0.0226 · ~200 = 4.5 levels apart,
     # which the check above tells.
     assert float(weights @ beam) - _low_beam(np.array([75.0, 0.0, 0.0])) == pytest.approx(0.02258, abs=1e-4)
+
+
+# ------------------------------------------------------------------------------------------ software variants
+def _hardware_sources_digest() -> str:
+    """sha256 of every hardware scene source over the variant switches (light counts 0 and 2) and the sky's."""
+    digest = hashlib.sha256()
+    for material in range(7):
+        for flags in itertools.product((False, True), repeat=10):
+            night, wet, shadow, airlight, falloff, own, own_blocked, thin_fog, distant, fog_start = flags
+            for lights in (0, 2):
+                variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own,
+                           "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant,
+                           "fog_start": fog_start}  # fmt: skip
+                digest.update(shaders.scene_vertex(material, night, wet, **variant).encode())
+                for depth8, packed in ((False, False), (True, False), (True, True)):
+                    digest.update(shaders.scene_fragment(material, night, wet, depth8, packed, **variant).encode())
+    for clouds, falloff, airlight in itertools.product((False, True), repeat=3):
+        digest.update(shaders.sky_vertex(clouds, falloff, airlight).encode())
+    return digest.hexdigest()
+
+
+def test_hardware_shader_sources_are_those_the_h100_figures_were_measured_with():
+    # Recorded from the sources before the software variants existed (commit b6e03aa): a hardware GPU compiles the
+    # same text byte for byte. A deliberate change to the hardware shaders updates this digest and re-measures the
+    # H100 (README, "Cost of the camera lighting").
+    assert _hardware_sources_digest() == "2a52fe754d269d0ec3cd1343074dea852b98cf44002489294ba03c7995e50d8a"
+
+
+def test_software_variants_move_the_own_beam_fog_and_glow_samples_to_cheaper_forms():
+    night = {"lights": 2, "own": True, "airlight": True}
+    # A near road at night: the own beam per pixel on a GPU (OWN 1), in the vertex loop on a software rasteriser.
+    assert "#define OWN 1\n" in shaders.scene_fragment(Material.ROAD, True, False, **night)
+    assert "#define OWN 0\n" in shaders.scene_fragment(Material.ROAD, True, False, **night, software=True)
+    # Car paint likewise; ground and facades (triangles of 18-50 m) keep it per pixel on both.
+    assert "#define OWN 0\n" in shaders.scene_vertex(Material.PAINT, True, False, **night, software=True)
+    for big in (Material.MATTE, Material.FOLIAGE, Material.FACADE):
+        assert "#define OWN 1\n" in shaders.scene_fragment(big, True, False, **night, software=True)
+    # Dense fog (thin_fog False) on glass: per pixel on a GPU, per vertex on a software rasteriser; never where the
+    # fog starts away from the camera or thins with height; ground stays per pixel.
+    assert not shaders.vertex_fog(Material.GLASS, False, False)
+    assert shaders.vertex_fog(Material.GLASS, False, False, software=True)
+    assert not shaders.vertex_fog(Material.GLASS, False, False, fog_start=True, software=True)
+    assert not shaders.vertex_fog(Material.GLASS, True, False, software=True)
+    assert not shaders.vertex_fog(Material.MATTE, False, False, software=True)
+    # The own beam's glow in the fog: 8 samples on a GPU, 4 on a software rasteriser (scene and sky).
+    assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.scene_vertex(Material.ROAD, True, False, **night)
+    assert "#define AIRLIGHT_SAMPLES 4\n" in shaders.scene_vertex(Material.ROAD, True, False, **night, software=True)
+    assert "#define AIRLIGHT_SAMPLES 4\n" in shaders.sky_vertex(False, False, True, software=True)
+    assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.sky_vertex(False, False, True)
+
+
+def test_the_shadow_map_is_filtered_on_a_gpu_and_read_at_the_nearest_texel_in_software(renderer):
+    hardware = renderer.hardware
+    with renderer.ctx:  # other renderers of the test session may have made their context current
+        try:
+            renderer.hardware = False
+            soft, _ = renderer._shadow_target(64)
+            renderer.hardware = True
+            filtered, _ = renderer._shadow_target(32)
+        finally:
+            renderer.hardware = hardware
+    assert soft.filter == (moderngl.NEAREST, moderngl.NEAREST)
+    assert filtered.filter == (moderngl.LINEAR, moderngl.LINEAR)
+    assert soft.compare_func == filtered.compare_func == "<="

@@ -616,7 +616,7 @@ class Renderer:
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
         """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam, own
-        beam blocked, thin fog, distant, fog starts away), the sky
+        beam blocked, thin fog, distant, fog starts away, no fog), the sky
         program ("sky", clouds, falloff, airlight) or the shadow-map program ("shadow",), compiled once."""
         prog = self._programs.get(key)
         if prog is None:
@@ -627,10 +627,10 @@ class Renderer:
                 prog = self.ctx.program(vertex_shader=shaders.SHADOW_VERTEX, fragment_shader=shaders.SHADOW_FRAGMENT)
             else:
                 _, material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant, \
-                    fog_start = key
+                    fog_start, fogless = key
                 variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own,
                            "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant,
-                           "fog_start": fog_start, "software": not self.hardware}  # fmt: skip
+                           "fog_start": fog_start, "software": not self.hardware, "fogless": fogless}  # fmt: skip
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet, **variant),
                     fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed, **variant),
@@ -932,6 +932,7 @@ class Renderer:
         own_blocked = own and seen.block_distance is not None and float(seen.block_distance[0]) < NO_BLOCKER
         thin_fog = light.fog_density <= shaders.THIN_FOG
         fog_start = light.fog_start > 0.0
+        fogless = light.fog_density == 0.0 and not self.hardware  # (a hardware GPU compiles no variant for it)
         variant = (shadow, airlight, falloff, shaders.light_count(len(seen)) if night else 0, own, own_blocked,
                    thin_fog)  # fmt: skip
         # Far static tiles get the distant programs (lit per vertex) where those differ: at night, or in fog too
@@ -956,7 +957,7 @@ class Renderer:
             near = near_runs.get(material, len(runs)) if material != Material.FACADE else len(runs)
             # The near runs (and the actors) first, then the distant ones: the drawing order of the triangles stays.
             for distant, part in ((False, slice(0, near)), (True, slice(near, len(runs)))):
-                key = ("scene", int(material), night, wet, *variant, distant, fog_start)
+                key = ("scene", int(material), night, wet, *variant, distant, fog_start, fogless)
                 if distant and part.start == part.stop:
                     continue
                 prog = self._program(key)

@@ -525,7 +525,7 @@ SOFTWARE_PER_VERTEX: frozenset[int] = frozenset({1, 3, 4, 6})
 
 
 def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False,
-               software: bool = False) -> bool:  # fmt: skip
+               software: bool = False, fogless: bool = False) -> bool:  # fmt: skip
     """Whether a scene program fogs per vertex (its fog amount interpolated between the triangle's corners).
 
     Roads always (99 % of their triangles are under 4.3 m: the interpolated amount stays within about one level of
@@ -534,8 +534,12 @@ def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = Fal
     triangles are far from the camera (``distant``); never when the fog thins with height (``falloff``) or starts
     some way out (``fog_start``: the amount's kink there would be smeared over a triangle, up to 28 levels on a
     road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog; with ``software`` it
-    also fogs the small triangles of :data:`SOFTWARE_PER_VERTEX` per vertex in dense fog.
+    also fogs the small triangles of :data:`SOFTWARE_PER_VERTEX` per vertex in dense fog, and every material (facades
+    too) where there is no fog at all (``fogless``: a fog amount of exactly 0 wherever it is computed, so the pixels
+    stay the same; facades' windows, which the vertex shader does not fog, have none to lack).
     """
+    if software and fogless:
+        return True
     if falloff or fog_start:
         return False
     small = software and int(material) in SOFTWARE_PER_VERTEX
@@ -551,7 +555,8 @@ DISTANT_FROM = 30.0
 
 def _header(material: int, night: bool, wet: bool, shadow: bool = False, airlight: bool = False, falloff: bool = False,
             lights: int = 0, own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
-            distant: bool = False, fog_start: bool = False, software: bool = False) -> str:  # fmt: skip
+            distant: bool = False, fog_start: bool = False, software: bool = False, fogless: bool = False
+            ) -> str:  # fmt: skip
     distant = distant and int(material) != 2  # facades are lit alike near and far
     # Distant: the own beam joins the other beams in the vertex shader's loop (light 0 first), the pools come per
     # vertex as on roads.
@@ -569,7 +574,7 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
         # The other beams reach the fragment as their own input only on a wet road (its albedo changes per pixel).
         f"#define VBEAMS {int(int(material) == 1 and wet)}\n"
         f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
-        f"#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start, software))}\n"
+        f"#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start, software, fogless))}\n"
         f"#define VPOOL {int(pool)}\n"
         f"#define AIRLIGHT_SAMPLES {_airlight_samples(software)}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
     )
@@ -588,11 +593,11 @@ def _functions(source: str) -> str:
 def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, airlight: bool = False,
                  falloff: bool = False, lights: int = 0, own: bool = False, own_blocked: bool = True,
                  thin_fog: bool = False, distant: bool = False, fog_start: bool = False,
-                 software: bool = False) -> str:  # fmt: skip
+                 software: bool = False, fogless: bool = False) -> str:  # fmt: skip
     """The scene vertex shader specialised for one material and weather variant (``software``: see
     :func:`scene_fragment`)."""
     header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
-                     fog_start, software)  # fmt: skip
+                     fog_start, software, fogless)  # fmt: skip
     return header + _functions(_SCENE_VERTEX)
 
 
@@ -644,7 +649,8 @@ def _fragment(source: str, depth8: bool, packed: bool = False) -> str:
 def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False, *,
                    shadow: bool = False, airlight: bool = False, falloff: bool = False, lights: int = 0,
                    own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
-                   distant: bool = False, fog_start: bool = False, software: bool = False) -> str:  # fmt: skip
+                   distant: bool = False, fog_start: bool = False, software: bool = False,
+                   fogless: bool = False) -> str:  # fmt: skip
     """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float;
     ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``: the sun's shadow map; ``airlight``: the
     low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the number of low beams, one of
@@ -652,9 +658,10 @@ def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, 
     stands in it; ``thin_fog``: the fog is thin enough to fog every material but facades per vertex,
     :func:`vertex_fog`; ``distant``: triangles beyond :data:`DISTANT_FROM`, lit per vertex at night; ``fog_start``:
     the fog starts some way out; ``software``: the cheaper variant for a software rasteriser, see
-    :data:`SOFTWARE_AIRLIGHT_SAMPLES` and :data:`SOFTWARE_PER_VERTEX`; without it the source is the hardware GPU's)."""
+    :data:`SOFTWARE_AIRLIGHT_SAMPLES`, :data:`SOFTWARE_PER_VERTEX` and :func:`vertex_fog`; without it the source is
+    the hardware GPU's; ``fogless``: no fog at all, used by the software variant only)."""
     header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
-                     fog_start, software)  # fmt: skip
+                     fog_start, software, fogless)  # fmt: skip
     return header + _fragment(_functions(_SCENE_FRAGMENT), depth8, packed)
 
 

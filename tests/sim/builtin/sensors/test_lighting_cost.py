@@ -228,3 +228,36 @@ def test_the_shadow_map_is_filtered_on_a_gpu_and_read_at_the_nearest_texel_in_so
     assert soft.filter == (moderngl.NEAREST, moderngl.NEAREST)
     assert filtered.filter == (moderngl.LINEAR, moderngl.LINEAR)
     assert soft.compare_func == filtered.compare_func == "<="
+
+
+def test_without_fog_a_software_rasteriser_fogs_facades_per_vertex_and_draws_the_same_pixels(monkeypatch):
+    # No fog (no fog_density, no rain: extinction exactly 0) makes every fog amount exactly 1 − exp(−0) = 0, per pixel
+    # or per vertex, so the software variant's per-vertex fog on facades cannot change a pixel.
+    assert "#define VFOG 1\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True, fogless=True)
+    assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, fogless=True)  # a GPU's
+    assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True)
+    wall = np.array([[[20.0, -30.0, 0.0], [20.0, 30.0, 0.0], [20.0, 30.0, 25.0]],
+                     [[20.0, -30.0, 0.0], [20.0, 30.0, 25.0], [20.0, -30.0, 25.0]]])  # fmt: skip
+    mesh = TriangleMesh.from_triangles(wall, (150, 140, 130), 1, material=Material.FACADE)
+    noon = Lighting.from_weather(WeatherParameters(sun_altitude_angle=50.0, sun_azimuth_angle=200.0))
+    assert noon.fog_density == 0.0
+
+    def draw() -> np.ndarray:
+        r = Renderer()
+        try:
+            if r.hardware:
+                pytest.skip("a hardware GPU draws the hardware variants")
+            r.set_static(mesh)
+            r.set_dynamic(TriangleMesh.empty())
+            return r.render([_view(20.0, height=6.0)], noon)[0].rgb
+        finally:
+            r.close()
+
+    per_vertex = draw()
+    vertex_fog = shaders.vertex_fog
+    # The header passes (material, falloff, thin_fog, distant, fog_start, software, fogless): drop fogless.
+    monkeypatch.setattr(shaders, "vertex_fog", lambda *args: vertex_fog(*args[:6]))
+    assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True, fogless=True)
+    per_pixel = draw()
+    assert (per_vertex[..., 0] > 0).mean() > 0.5  # the wall fills most of the view
+    np.testing.assert_array_equal(per_vertex, per_pixel)

@@ -19,10 +19,10 @@ vertex (their triangles are small on screen, and a software rasteriser pays for 
 With ``AIRLIGHT`` the own low beam also lights the fog between the camera and each pixel (per vertex).
 Every instruction a pixel runs costs llvmpipe about 2 ms a frame of the full rig (1600×900 ×7 on one thread):
 work that can move to the vertices does. On a software rasteriser (``software`` variants) more moves, at some cost
-in image quality: the own low beam and the fog on the materials of :data:`SOFTWARE_PER_VERTEX`, and the low beam's
-glow in the fog with :data:`SOFTWARE_AIRLIGHT_SAMPLES` (the renderer also takes the shadow map's nearest texel
-there); without ``software`` every source is the hardware GPU's, unchanged. Only the colour output depends on any of
-this: depth, tag and instance id come from the geometry alone.
+in image quality: the own low beam on the materials of :data:`SOFTWARE_PER_VERTEX`, the fog on all but facades in
+any fog (:func:`vertex_fog`), and the low beam's glow in the fog with :data:`SOFTWARE_AIRLIGHT_SAMPLES` (the
+renderer also takes the shadow map's nearest texel there); without ``software`` every source is the hardware GPU's,
+unchanged. Only the colour output depends on any of this: depth, tag and instance id come from the geometry alone.
 """
 
 from __future__ import annotations
@@ -517,10 +517,10 @@ def light_count(n: int) -> int:
 #: Fog extinction (per metre) up to which every material but facades is fogged per vertex (weathers 0, 1, 5, 7, 18,
 #: 19, 26): on a 30 m triangle next to the camera the per-vertex distance is off by up to ~10 m, 1 % of fog here.
 THIN_FOG = 0.002
-#: Materials a software rasteriser fogs and lights with the own low beam per vertex, near or far and in any fog
-#: (``software`` variants; scene_mesh.Material values): roads (99 % of their triangles under 4.3 m; fogged per vertex
-#: anyway), glass, lamps and paint (the actors' faces, a metre or two). Not ground, foliage or facades: their
-#: triangles reach 18-50 m, across which a beam's cone or the fog would show the corners.
+#: Materials a software rasteriser lights with the own low beam per vertex, near or far (``software`` variants;
+#: scene_mesh.Material values): roads (99 % of their triangles under 4.3 m), glass, lamps and paint (the actors'
+#: faces, a metre or two). Not ground, foliage or facades: their triangles reach 18-50 m, across which the beam's
+#: cone would show the corners (compare_renders' night weather: up to 100 levels).
 SOFTWARE_PER_VERTEX: frozenset[int] = frozenset({1, 3, 4, 6})
 
 
@@ -534,16 +534,16 @@ def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = Fal
     triangles are far from the camera (``distant``); never when the fog thins with height (``falloff``) or starts
     some way out (``fog_start``: the amount's kink there would be smeared over a triangle, up to 28 levels on a
     road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog; with ``software`` it
-    also fogs the small triangles of :data:`SOFTWARE_PER_VERTEX` per vertex in dense fog, and every material (facades
-    too) where there is no fog at all (``fogless``: a fog amount of exactly 0 wherever it is computed, so the pixels
+    fogs every material but facades per vertex in any fog as well (in compare_renders' poses under weathers 11, 12
+    and 22, fog 50-60: RGB within 5 levels of the per-pixel fog, 0.1-0.2 % of values off by more than 2), and facades
+    too where there is no fog at all (``fogless``: a fog amount of exactly 0 wherever it is computed, so the pixels
     stay the same; facades' windows, which the vertex shader does not fog, have none to lack).
     """
     if software and fogless:
         return True
     if falloff or fog_start:
         return False
-    small = software and int(material) in SOFTWARE_PER_VERTEX
-    return int(material) == 1 or ((thin_fog or distant or small) and int(material) != 2)
+    return int(material) == 1 or ((thin_fog or distant or software) and int(material) != 2)
 
 
 #: Static tiles whose every point lies farther than this (m) from the camera are drawn ``distant``: at night every

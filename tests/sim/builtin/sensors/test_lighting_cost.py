@@ -201,13 +201,14 @@ def test_software_variants_move_the_own_beam_fog_and_glow_samples_to_cheaper_for
     assert "#define OWN 0\n" in shaders.scene_vertex(Material.PAINT, True, False, **night, software=True)
     for big in (Material.MATTE, Material.FOLIAGE, Material.FACADE):
         assert "#define OWN 1\n" in shaders.scene_fragment(big, True, False, **night, software=True)
-    # Dense fog (thin_fog False) on glass: per pixel on a GPU, per vertex on a software rasteriser; never where the
-    # fog starts away from the camera or thins with height; ground stays per pixel.
-    assert not shaders.vertex_fog(Material.GLASS, False, False)
-    assert shaders.vertex_fog(Material.GLASS, False, False, software=True)
-    assert not shaders.vertex_fog(Material.GLASS, False, False, fog_start=True, software=True)
-    assert not shaders.vertex_fog(Material.GLASS, True, False, software=True)
-    assert not shaders.vertex_fog(Material.MATTE, False, False, software=True)
+    # Dense fog (thin_fog False) on glass and ground: per pixel on a GPU, per vertex on a software rasteriser; never
+    # where the fog starts away from the camera or thins with height; facades stay per pixel in fog.
+    for material in (Material.GLASS, Material.MATTE, Material.FOLIAGE):
+        assert not shaders.vertex_fog(material, False, False)
+        assert shaders.vertex_fog(material, False, False, software=True)
+        assert not shaders.vertex_fog(material, False, False, fog_start=True, software=True)
+        assert not shaders.vertex_fog(material, True, False, software=True)
+    assert not shaders.vertex_fog(Material.FACADE, False, True, software=True)
     # The own beam's glow in the fog: 8 samples on a GPU, 4 on a software rasteriser (scene and sky).
     assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.scene_vertex(Material.ROAD, True, False, **night)
     assert "#define AIRLIGHT_SAMPLES 4\n" in shaders.scene_vertex(Material.ROAD, True, False, **night, software=True)

@@ -19,8 +19,8 @@ vertex (their triangles are small on screen, and a software rasteriser pays for 
 With ``AIRLIGHT`` the own low beam also lights the fog between the camera and each pixel (per vertex).
 Every instruction a pixel runs costs llvmpipe about 2 ms a frame of the full rig (1600×900 ×7 on one thread):
 work that can move to the vertices does. On a software rasteriser (``software`` variants) more moves, at some cost
-in image quality: the own low beam on the materials of :data:`SOFTWARE_PER_VERTEX`, the fog on all but facades in
-any fog (:func:`vertex_fog`), and the low beam's glow in the fog with :data:`SOFTWARE_AIRLIGHT_SAMPLES` (the
+in image quality: the own low beam on the materials of :data:`SOFTWARE_PER_VERTEX`, the fog on all but facades by
+day in any fog and on facades too at night (:func:`vertex_fog`), and the low beam's glow in the fog with :data:`SOFTWARE_AIRLIGHT_SAMPLES` (the
 renderer also takes the shadow map's nearest texel there); without ``software`` every source is the hardware GPU's,
 unchanged. Only the colour output depends on any of this: depth, tag and instance id come from the geometry alone.
 """
@@ -525,7 +525,7 @@ SOFTWARE_PER_VERTEX: frozenset[int] = frozenset({1, 3, 4, 6})
 
 
 def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False,
-               software: bool = False, fogless: bool = False) -> bool:  # fmt: skip
+               software: bool = False, fogless: bool = False, night: bool = False) -> bool:  # fmt: skip
     """Whether a scene program fogs per vertex (its fog amount interpolated between the triangle's corners).
 
     Roads always (99 % of their triangles are under 4.3 m: the interpolated amount stays within about one level of
@@ -535,15 +535,17 @@ def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = Fal
     some way out (``fog_start``: the amount's kink there would be smeared over a triangle, up to 28 levels on a
     road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog; with ``software`` it
     fogs every material but facades per vertex in any fog as well (in compare_renders' poses under weathers 11, 12
-    and 22, fog 50-60: RGB within 5 levels of the per-pixel fog, 0.1-0.2 % of values off by more than 2), and facades
-    too where there is no fog at all (``fogless``: a fog amount of exactly 0 wherever it is computed, so the pixels
-    stay the same; facades' windows, which the vertex shader does not fog, have none to lack).
+    and 22, fog 50-60: RGB within 5 levels of the per-pixel fog, 0.1-0.2 % of values off by more than 2); facades
+    too at ``night`` (the fragment applies the interpolated amount last, windows included; weathers 20 and 22: within
+    4 levels, 0.06 % of values off by more than 2) or where there is no fog at all (``fogless``: a fog amount of
+    exactly 0 wherever it is computed, so the pixels stay the same; by day the vertex shader fogs the colours, and
+    the facades' window colour is not among them).
     """
     if software and fogless:
         return True
     if falloff or fog_start:
         return False
-    return int(material) == 1 or ((thin_fog or distant or software) and int(material) != 2)
+    return int(material) == 1 or (software and night) or ((thin_fog or distant or software) and int(material) != 2)
 
 
 #: Static tiles whose every point lies farther than this (m) from the camera are drawn ``distant``: at night every
@@ -574,7 +576,7 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
         # The other beams reach the fragment as their own input only on a wet road (its albedo changes per pixel).
         f"#define VBEAMS {int(int(material) == 1 and wet)}\n"
         f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
-        f"#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start, software, fogless))}\n"
+        f"#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start, software, fogless, night))}\n"
         f"#define VPOOL {int(pool)}\n"
         f"#define AIRLIGHT_SAMPLES {_airlight_samples(software)}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
     )

@@ -209,6 +209,11 @@ def test_software_variants_move_the_own_beam_fog_and_glow_samples_to_cheaper_for
         assert not shaders.vertex_fog(material, False, False, fog_start=True, software=True)
         assert not shaders.vertex_fog(material, True, False, software=True)
     assert not shaders.vertex_fog(Material.FACADE, False, True, software=True)
+    # At night a software rasteriser fogs facades per vertex as well (not where the fog starts away).
+    assert shaders.vertex_fog(Material.FACADE, False, False, software=True, night=True)
+    assert not shaders.vertex_fog(Material.FACADE, False, False, night=True)
+    assert not shaders.vertex_fog(Material.FACADE, False, False, fog_start=True, software=True, night=True)
+    assert "#define VFOG 1\n" in shaders.scene_fragment(Material.FACADE, True, False, **night, software=True)
     # The own beam's glow in the fog: 8 samples on a GPU, 4 on a software rasteriser (scene and sky).
     assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.scene_vertex(Material.ROAD, True, False, **night)
     assert "#define AIRLIGHT_SAMPLES 4\n" in shaders.scene_vertex(Material.ROAD, True, False, **night, software=True)
@@ -256,8 +261,8 @@ def test_without_fog_a_software_rasteriser_fogs_facades_per_vertex_and_draws_the
 
     per_vertex = draw()
     vertex_fog = shaders.vertex_fog
-    # The header passes (material, falloff, thin_fog, distant, fog_start, software, fogless): drop fogless.
-    monkeypatch.setattr(shaders, "vertex_fog", lambda *args: vertex_fog(*args[:6]))
+    # The header passes (material, falloff, thin_fog, distant, fog_start, software, fogless, night): fogless False.
+    monkeypatch.setattr(shaders, "vertex_fog", lambda *args: vertex_fog(*args[:6], False, *args[7:]))
     assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True, fogless=True)
     per_pixel = draw()
     assert (per_vertex[..., 0] > 0).mean() > 0.5  # the wall fills most of the view

@@ -518,10 +518,11 @@ def light_count(n: int) -> int:
 #: 19, 26): on a 30 m triangle next to the camera the per-vertex distance is off by up to ~10 m, 1 % of fog here.
 THIN_FOG = 0.002
 #: Materials a software rasteriser lights with the own low beam per vertex, near or far (``software`` variants;
-#: scene_mesh.Material values): roads (99 % of their triangles under 4.3 m), glass, lamps and paint (the actors'
-#: faces, a metre or two). Not ground, foliage or facades: their triangles reach 18-50 m, across which the beam's
-#: cone would show the corners (compare_renders' night weather: up to 100 levels).
-SOFTWARE_PER_VERTEX: frozenset[int] = frozenset({1, 3, 4, 6})
+#: scene_mesh.Material values): glass, lamps and paint, the actors' faces of a metre or two. Not ground, foliage or
+#: facades, whose triangles reach 18-50 m, across which the beam's cone would show the corners (compare_renders'
+#: night weather: up to 100 levels), nor roads: interpolated between corners 2-4 m apart the beam's peak sinks, and
+#: the road ahead at night drops below half of noon's luma (weather_gallery, Town10HD weather 21: 0.43).
+SOFTWARE_PER_VERTEX: frozenset[int] = frozenset({3, 4, 6})
 
 
 def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False,
@@ -562,8 +563,8 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
     distant = distant and int(material) != 2  # facades are lit alike near and far
     # Distant: the own beam joins the other beams in the vertex shader's loop (light 0 first), the pools come per
     # vertex as on roads.
-    # On a software rasteriser the own beam is per vertex on roads and actors too (llvmpipe: ~10 ms a night frame of
-    # the rig; RGB off by up to 28 levels where the cone's edge crosses a road triangle or a car's face).
+    # On a software rasteriser the own beam is per vertex on actors too (RGB off by up to 28 levels where the cone's
+    # edge crosses a car's face).
     own = own and not distant and not (software and int(material) in SOFTWARE_PER_VERTEX)
     # Lamp pools (7 m Gaussians) per vertex on every material but facades, whose two triangles a wall cannot carry
     # a pool on: per pixel they cost a software rasteriser ~60 ms a frame of the rig at night.

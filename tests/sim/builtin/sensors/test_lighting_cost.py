@@ -194,12 +194,12 @@ def test_hardware_shader_sources_are_those_the_h100_figures_were_measured_with()
 
 def test_software_variants_move_the_own_beam_fog_and_glow_samples_to_cheaper_forms():
     night = {"lights": 2, "own": True, "airlight": True}
-    # A near road at night: the own beam per pixel on a GPU (OWN 1), in the vertex loop on a software rasteriser.
-    assert "#define OWN 1\n" in shaders.scene_fragment(Material.ROAD, True, False, **night)
-    assert "#define OWN 0\n" in shaders.scene_fragment(Material.ROAD, True, False, **night, software=True)
-    # Car paint likewise; ground and facades (triangles of 18-50 m) keep it per pixel on both.
-    assert "#define OWN 0\n" in shaders.scene_vertex(Material.PAINT, True, False, **night, software=True)
-    for big in (Material.MATTE, Material.FOLIAGE, Material.FACADE):
+    # Car paint at night: the own beam per pixel on a GPU (OWN 1), in the vertex loop on a software rasteriser.
+    assert "#define OWN 1\n" in shaders.scene_fragment(Material.PAINT, True, False, **night)
+    assert "#define OWN 0\n" in shaders.scene_fragment(Material.PAINT, True, False, **night, software=True)
+    assert "#define OWN 0\n" in shaders.scene_vertex(Material.GLASS, True, False, **night, software=True)
+    # Roads, ground and facades keep it per pixel on both.
+    for big in (Material.ROAD, Material.MATTE, Material.FOLIAGE, Material.FACADE):
         assert "#define OWN 1\n" in shaders.scene_fragment(big, True, False, **night, software=True)
     # Dense fog (thin_fog False) on glass and ground: per pixel on a GPU, per vertex on a software rasteriser; never
     # where the fog starts away from the camera or thins with height; facades stay per pixel in fog.

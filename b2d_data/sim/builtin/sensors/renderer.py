@@ -616,21 +616,21 @@ class Renderer:
     # ------------------------------------------------------------------------------------------ programs
     def _program(self, key: tuple) -> moderngl.Program:
         """A scene program ("scene", material, night, wet, shadow, airlight, falloff, light count, own beam, own
-        beam blocked, thin fog, distant, fog starts away), the sky
+        beam blocked, thin fog, distant, fog starts away, no fog), the sky
         program ("sky", clouds, falloff, airlight) or the shadow-map program ("shadow",), compiled once."""
         prog = self._programs.get(key)
         if prog is None:
             if key[0] == "sky":
-                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(*key[1:]),
+                prog = self.ctx.program(vertex_shader=shaders.sky_vertex(*key[1:], software=not self.hardware),
                                         fragment_shader=shaders.sky_fragment(self.depth8, self.packed))  # fmt: skip
             elif key[0] == "shadow":
                 prog = self.ctx.program(vertex_shader=shaders.SHADOW_VERTEX, fragment_shader=shaders.SHADOW_FRAGMENT)
             else:
                 _, material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant, \
-                    fog_start = key
+                    fog_start, fogless = key
                 variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own,
                            "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant,
-                           "fog_start": fog_start}  # fmt: skip
+                           "fog_start": fog_start, "software": not self.hardware, "fogless": fogless}  # fmt: skip
                 prog = self.ctx.program(
                     vertex_shader=shaders.scene_vertex(material, night, wet, **variant),
                     fragment_shader=shaders.scene_fragment(material, night, wet, self.depth8, self.packed, **variant),
@@ -771,12 +771,16 @@ class Renderer:
         return self.shadows and light.shadow_strength > 0.0
 
     def _shadow_target(self, size: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
-        """The depth texture (compared and filtered: 2×2 PCF in hardware) and framebuffer of a shadow map size."""
+        """The depth texture (compared and filtered: 2×2 PCF on a hardware GPU, the nearest texel on a software
+        rasteriser) and framebuffer of a shadow map size."""
         target = self._shadow_maps.get(size)
         if target is None:
             texture = self.ctx.depth_texture((size, size))
             texture.compare_func = "<="
-            texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            # llvmpipe fetches and compares four texels per pixel for the filtered lookup: the nearest one saves
+            # ~25 ms a frame of the rig in sharp sunlight (bench_lighting, weather 12), at the price of stepped edges.
+            filtering = moderngl.LINEAR if self.hardware else moderngl.NEAREST
+            texture.filter = (filtering, filtering)
             texture.repeat_x = False
             texture.repeat_y = False
             target = self._shadow_maps[size] = (texture, self.ctx.framebuffer(depth_attachment=texture))
@@ -928,6 +932,7 @@ class Renderer:
         own_blocked = own and seen.block_distance is not None and float(seen.block_distance[0]) < NO_BLOCKER
         thin_fog = light.fog_density <= shaders.THIN_FOG
         fog_start = light.fog_start > 0.0
+        fogless = light.fog_density == 0.0 and not self.hardware  # (a hardware GPU compiles no variant for it)
         variant = (shadow, airlight, falloff, shaders.light_count(len(seen)) if night else 0, own, own_blocked,
                    thin_fog)  # fmt: skip
         # Far static tiles get the distant programs (lit per vertex) where those differ: at night, or in fog too
@@ -952,7 +957,7 @@ class Renderer:
             near = near_runs.get(material, len(runs)) if material != Material.FACADE else len(runs)
             # The near runs (and the actors) first, then the distant ones: the drawing order of the triangles stays.
             for distant, part in ((False, slice(0, near)), (True, slice(near, len(runs)))):
-                key = ("scene", int(material), night, wet, *variant, distant, fog_start)
+                key = ("scene", int(material), night, wet, *variant, distant, fog_start, fogless)
                 if distant and part.start == part.stop:
                     continue
                 prog = self._program(key)

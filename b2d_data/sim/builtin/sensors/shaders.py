@@ -18,8 +18,12 @@ tiles wholly beyond :data:`DISTANT_FROM` are drawn ``distant``: at night their o
 vertex (their triangles are small on screen, and a software rasteriser pays for every per-pixel light on them).
 With ``AIRLIGHT`` the own low beam also lights the fog between the camera and each pixel (per vertex).
 Every instruction a pixel runs costs llvmpipe about 2 ms a frame of the full rig (1600×900 ×7 on one thread):
-work that can move to the vertices does. Only the colour output depends on any of this: depth, tag and instance id
-come from the geometry alone.
+work that can move to the vertices does. On a software rasteriser (``software`` variants) more moves, at some cost
+in image quality: the own low beam on the materials of :data:`SOFTWARE_PER_VERTEX`, the fog on all but facades by
+day in any fog and on facades too at night (:func:`vertex_fog`), and the low beam's glow in the fog with
+:data:`SOFTWARE_AIRLIGHT_SAMPLES` (the renderer also takes the shadow map's nearest texel there); without
+``software`` every source is the hardware GPU's, unchanged. Only the colour output depends on any of this: depth,
+tag and instance id come from the geometry alone.
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ SKY_DEPTH = 1000.0
 SKY_TAG = 11
 #: Samples along a camera ray of the low beam's light in the fog (``AIRLIGHT``).
 AIRLIGHT_SAMPLES = 8
+#: The same on a software rasteriser, where every vertex's samples cost CPU (``software`` variants).
+SOFTWARE_AIRLIGHT_SAMPLES = 4
 #: Farthest distance (m) from the camera at which the ego's low beam still lights the fog.
 AIRLIGHT_REACH = 45.0
 
@@ -512,9 +518,16 @@ def light_count(n: int) -> int:
 #: Fog extinction (per metre) up to which every material but facades is fogged per vertex (weathers 0, 1, 5, 7, 18,
 #: 19, 26): on a 30 m triangle next to the camera the per-vertex distance is off by up to ~10 m, 1 % of fog here.
 THIN_FOG = 0.002
+#: Materials a software rasteriser lights with the own low beam per vertex, near or far (``software`` variants;
+#: scene_mesh.Material values): glass, lamps and paint, the actors' faces of a metre or two. Not ground, foliage or
+#: facades, whose triangles reach 18-50 m, across which the beam's cone would show the corners (compare_renders'
+#: night weather: up to 100 levels), nor roads: interpolated between corners 2-4 m apart the beam's peak sinks, and
+#: the road ahead at night drops below half of noon's luma (weather_gallery, Town10HD weather 21: 0.43).
+SOFTWARE_PER_VERTEX: frozenset[int] = frozenset({3, 4, 6})
 
 
-def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False) -> bool:
+def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = False, fog_start: bool = False,
+               software: bool = False, fogless: bool = False, night: bool = False) -> bool:  # fmt: skip
     """Whether a scene program fogs per vertex (its fog amount interpolated between the triangle's corners).
 
     Roads always (99 % of their triangles are under 4.3 m: the interpolated amount stays within about one level of
@@ -522,11 +535,19 @@ def vertex_fog(material: int, falloff: bool, thin_fog: bool, distant: bool = Fal
     corners lie metres farther from the camera than its middle) when the fog is thin (``thin_fog``) or the
     triangles are far from the camera (``distant``); never when the fog thins with height (``falloff``) or starts
     some way out (``fog_start``: the amount's kink there would be smeared over a triangle, up to 28 levels on a
-    road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog.
+    road in fog 60 from 10 m). A software rasteriser pays ~5 ns a pixel for the per-pixel fog; with ``software`` it
+    fogs every material but facades per vertex in any fog as well (in compare_renders' poses under weathers 11, 12
+    and 22, fog 50-60: RGB within 5 levels of the per-pixel fog, 0.1-0.2 % of values off by more than 2); facades
+    too at ``night`` (the fragment applies the interpolated amount last, windows included; weathers 20 and 22: within
+    4 levels, 0.06 % of values off by more than 2) or where there is no fog at all (``fogless``: a fog amount of
+    exactly 0 wherever it is computed, so the pixels stay the same; by day the vertex shader fogs the colours, and
+    the facades' window colour is not among them).
     """
+    if software and fogless:
+        return True
     if falloff or fog_start:
         return False
-    return int(material) == 1 or ((thin_fog or distant) and int(material) != 2)
+    return int(material) == 1 or (software and night) or ((thin_fog or distant or software) and int(material) != 2)
 
 
 #: Static tiles whose every point lies farther than this (m) from the camera are drawn ``distant``: at night every
@@ -538,11 +559,14 @@ DISTANT_FROM = 30.0
 
 def _header(material: int, night: bool, wet: bool, shadow: bool = False, airlight: bool = False, falloff: bool = False,
             lights: int = 0, own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
-            distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
+            distant: bool = False, fog_start: bool = False, software: bool = False, fogless: bool = False
+            ) -> str:  # fmt: skip
     distant = distant and int(material) != 2  # facades are lit alike near and far
     # Distant: the own beam joins the other beams in the vertex shader's loop (light 0 first), the pools come per
     # vertex as on roads.
-    own = own and not distant
+    # On a software rasteriser the own beam is per vertex on actors too (RGB off by up to 28 levels where the cone's
+    # edge crosses a car's face).
+    own = own and not distant and not (software and int(material) in SOFTWARE_PER_VERTEX)
     # Lamp pools (7 m Gaussians) per vertex on every material but facades, whose two triangles a wall cannot carry
     # a pool on: per pixel they cost a software rasteriser ~60 ms a frame of the rig at night.
     pool = night and int(material) != 2
@@ -553,10 +577,15 @@ def _header(material: int, night: bool, wet: bool, shadow: bool = False, airligh
         f"#define OWN_BLOCKED {int(own_blocked)}\n"
         # The other beams reach the fragment as their own input only on a wet road (its albedo changes per pixel).
         f"#define VBEAMS {int(int(material) == 1 and wet)}\n"
-        f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start))}\n"
+        f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
+        f"#define VFOG {int(vertex_fog(material, falloff, thin_fog, distant, fog_start, software, fogless, night))}\n"
         f"#define VPOOL {int(pool)}\n"
-        f"#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
+        f"#define AIRLIGHT_SAMPLES {_airlight_samples(software)}\n#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n"
     )
+
+
+def _airlight_samples(software: bool) -> int:
+    return SOFTWARE_AIRLIGHT_SAMPLES if software else AIRLIGHT_SAMPLES
 
 
 def _functions(source: str) -> str:
@@ -567,10 +596,12 @@ def _functions(source: str) -> str:
 
 def scene_vertex(material: int, night: bool, wet: bool, *, shadow: bool = False, airlight: bool = False,
                  falloff: bool = False, lights: int = 0, own: bool = False, own_blocked: bool = True,
-                 thin_fog: bool = False, distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
-    """The scene vertex shader specialised for one material and weather variant."""
+                 thin_fog: bool = False, distant: bool = False, fog_start: bool = False,
+                 software: bool = False, fogless: bool = False) -> str:  # fmt: skip
+    """The scene vertex shader specialised for one material and weather variant (``software``: see
+    :func:`scene_fragment`)."""
     header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
-                     fog_start)  # fmt: skip
+                     fog_start, software, fogless)  # fmt: skip
     return header + _functions(_SCENE_VERTEX)
 
 
@@ -622,16 +653,19 @@ def _fragment(source: str, depth8: bool, packed: bool = False) -> str:
 def scene_fragment(material: int, night: bool, wet: bool, depth8: bool = False, packed: bool = False, *,
                    shadow: bool = False, airlight: bool = False, falloff: bool = False, lights: int = 0,
                    own: bool = False, own_blocked: bool = True, thin_fog: bool = False,
-                   distant: bool = False, fog_start: bool = False) -> str:  # fmt: skip
+                   distant: bool = False, fog_start: bool = False, software: bool = False,
+                   fogless: bool = False) -> str:  # fmt: skip
     """The scene fragment shader for one material and weather variant (``depth8``: uint8 metres, not float;
     ``packed``: one RG32UI output, see :data:`UNPACK_COMPUTE`; ``shadow``: the sun's shadow map; ``airlight``: the
     low beam lights the fog; ``falloff``: the fog thins with height; ``lights``: the number of low beams, one of
     :data:`LIGHT_COUNTS`; ``own``: light 0 is the cameras' own beam, lit per pixel; ``own_blocked``: a vehicle
     stands in it; ``thin_fog``: the fog is thin enough to fog every material but facades per vertex,
     :func:`vertex_fog`; ``distant``: triangles beyond :data:`DISTANT_FROM`, lit per vertex at night; ``fog_start``:
-    the fog starts some way out)."""
+    the fog starts some way out; ``software``: the cheaper variant for a software rasteriser, see
+    :data:`SOFTWARE_AIRLIGHT_SAMPLES`, :data:`SOFTWARE_PER_VERTEX` and :func:`vertex_fog`; without it the source is
+    the hardware GPU's; ``fogless``: no fog at all, used by the software variant only)."""
     header = _header(material, night, wet, shadow, airlight, falloff, lights, own, own_blocked, thin_fog, distant,
-                     fog_start)  # fmt: skip
+                     fog_start, software, fogless)  # fmt: skip
     return header + _fragment(_functions(_SCENE_FRAGMENT), depth8, packed)
 
 
@@ -714,11 +748,12 @@ void main() {
 """
 
 
-def sky_vertex(clouds: bool, falloff: bool = False, airlight: bool = False) -> str:
-    """The sky vertex shader, with or without the cloud layer, a fog thinning with height and the low beam's glow."""
+def sky_vertex(clouds: bool, falloff: bool = False, airlight: bool = False, software: bool = False) -> str:
+    """The sky vertex shader, with or without the cloud layer, a fog thinning with height and the low beam's glow
+    (``software``: fewer samples of the glow)."""
     header = (f"#version 330\n#define CLOUDS {int(clouds)}\n#define FALLOFF {int(falloff)}\n#define AIRLIGHT {int(airlight)}\n"
               "#define OWN 1\n#define OWN_BLOCKED 1\n"
-              f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define AIRLIGHT_SAMPLES {AIRLIGHT_SAMPLES}\n"
+              f"#define MAX_LIGHTS {MAX_LIGHTS}\n#define AIRLIGHT_SAMPLES {_airlight_samples(software)}\n"
               f"#define AIRLIGHT_REACH {AIRLIGHT_REACH:.1f}\n")  # fmt: skip
     return header + _functions(_SKY_VERTEX)
 

@@ -6,8 +6,11 @@ rendered pixel must match within the 8-bit rounding of the image.
 
 from __future__ import annotations
 
+import hashlib
+import itertools
 import math
 
+import moderngl
 import numpy as np
 import pytest
 
@@ -161,3 +164,106 @@ def test_a_distant_road_gets_the_own_beam_at_its_corners(renderer):
     # against 0.39062 · 0.08698 + 0.60938 · 0.00855 = 0.03919 from the corners: 0.0226 · ~200 = 4.5 levels apart,
     # which the check above tells.
     assert float(weights @ beam) - _low_beam(np.array([75.0, 0.0, 0.0])) == pytest.approx(0.02258, abs=1e-4)
+
+
+# ------------------------------------------------------------------------------------------ software variants
+def _hardware_sources_digest() -> str:
+    """sha256 of every hardware scene source over the variant switches (light counts 0 and 2) and the sky's."""
+    digest = hashlib.sha256()
+    for material in range(7):
+        for flags in itertools.product((False, True), repeat=10):
+            night, wet, shadow, airlight, falloff, own, own_blocked, thin_fog, distant, fog_start = flags
+            for lights in (0, 2):
+                variant = {"shadow": shadow, "airlight": airlight, "falloff": falloff, "lights": lights, "own": own,
+                           "own_blocked": own_blocked, "thin_fog": thin_fog, "distant": distant,
+                           "fog_start": fog_start}  # fmt: skip
+                digest.update(shaders.scene_vertex(material, night, wet, **variant).encode())
+                for depth8, packed in ((False, False), (True, False), (True, True)):
+                    digest.update(shaders.scene_fragment(material, night, wet, depth8, packed, **variant).encode())
+    for clouds, falloff, airlight in itertools.product((False, True), repeat=3):
+        digest.update(shaders.sky_vertex(clouds, falloff, airlight).encode())
+    return digest.hexdigest()
+
+
+def test_hardware_shader_sources_are_those_the_h100_figures_were_measured_with():
+    # Recorded from the sources before the software variants existed (commit b6e03aa): a hardware GPU compiles the
+    # same text byte for byte. A deliberate change to the hardware shaders updates this digest and re-measures the
+    # H100 (README, "Cost of the camera lighting").
+    assert _hardware_sources_digest() == "2a52fe754d269d0ec3cd1343074dea852b98cf44002489294ba03c7995e50d8a"
+
+
+def test_software_variants_move_the_own_beam_fog_and_glow_samples_to_cheaper_forms():
+    night = {"lights": 2, "own": True, "airlight": True}
+    # Car paint at night: the own beam per pixel on a GPU (OWN 1), in the vertex loop on a software rasteriser.
+    assert "#define OWN 1\n" in shaders.scene_fragment(Material.PAINT, True, False, **night)
+    assert "#define OWN 0\n" in shaders.scene_fragment(Material.PAINT, True, False, **night, software=True)
+    assert "#define OWN 0\n" in shaders.scene_vertex(Material.GLASS, True, False, **night, software=True)
+    # Roads, ground and facades keep it per pixel on both.
+    for big in (Material.ROAD, Material.MATTE, Material.FOLIAGE, Material.FACADE):
+        assert "#define OWN 1\n" in shaders.scene_fragment(big, True, False, **night, software=True)
+    # Dense fog (thin_fog False) on glass and ground: per pixel on a GPU, per vertex on a software rasteriser; never
+    # where the fog starts away from the camera or thins with height; facades stay per pixel in fog.
+    for material in (Material.GLASS, Material.MATTE, Material.FOLIAGE):
+        assert not shaders.vertex_fog(material, False, False)
+        assert shaders.vertex_fog(material, False, False, software=True)
+        assert not shaders.vertex_fog(material, False, False, fog_start=True, software=True)
+        assert not shaders.vertex_fog(material, True, False, software=True)
+    assert not shaders.vertex_fog(Material.FACADE, False, True, software=True)
+    # At night a software rasteriser fogs facades per vertex as well (not where the fog starts away).
+    assert shaders.vertex_fog(Material.FACADE, False, False, software=True, night=True)
+    assert not shaders.vertex_fog(Material.FACADE, False, False, night=True)
+    assert not shaders.vertex_fog(Material.FACADE, False, False, fog_start=True, software=True, night=True)
+    assert "#define VFOG 1\n" in shaders.scene_fragment(Material.FACADE, True, False, **night, software=True)
+    # The own beam's glow in the fog: 8 samples on a GPU, 4 on a software rasteriser (scene and sky).
+    assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.scene_vertex(Material.ROAD, True, False, **night)
+    assert "#define AIRLIGHT_SAMPLES 4\n" in shaders.scene_vertex(Material.ROAD, True, False, **night, software=True)
+    assert "#define AIRLIGHT_SAMPLES 4\n" in shaders.sky_vertex(False, False, True, software=True)
+    assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.sky_vertex(False, False, True)
+
+
+def test_the_shadow_map_is_filtered_on_a_gpu_and_read_at_the_nearest_texel_in_software(renderer):
+    hardware = renderer.hardware
+    with renderer.ctx:  # other renderers of the test session may have made their context current
+        try:
+            renderer.hardware = False
+            soft, _ = renderer._shadow_target(64)
+            renderer.hardware = True
+            filtered, _ = renderer._shadow_target(32)
+        finally:
+            renderer.hardware = hardware
+    assert soft.filter == (moderngl.NEAREST, moderngl.NEAREST)
+    assert filtered.filter == (moderngl.LINEAR, moderngl.LINEAR)
+    assert soft.compare_func == filtered.compare_func == "<="
+
+
+def test_without_fog_a_software_rasteriser_fogs_facades_per_vertex_and_draws_the_same_pixels(monkeypatch):
+    # No fog (no fog_density, no rain: extinction exactly 0) makes every fog amount exactly 1 − exp(−0) = 0, per pixel
+    # or per vertex, so the software variant's per-vertex fog on facades cannot change a pixel.
+    assert "#define VFOG 1\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True, fogless=True)
+    assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, fogless=True)  # a GPU's
+    assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True)
+    wall = np.array([[[20.0, -30.0, 0.0], [20.0, 30.0, 0.0], [20.0, 30.0, 25.0]],
+                     [[20.0, -30.0, 0.0], [20.0, 30.0, 25.0], [20.0, -30.0, 25.0]]])  # fmt: skip
+    mesh = TriangleMesh.from_triangles(wall, (150, 140, 130), 1, material=Material.FACADE)
+    noon = Lighting.from_weather(WeatherParameters(sun_altitude_angle=50.0, sun_azimuth_angle=200.0))
+    assert noon.fog_density == 0.0
+
+    def draw() -> np.ndarray:
+        r = Renderer()
+        try:
+            if r.hardware:
+                pytest.skip("a hardware GPU draws the hardware variants")
+            r.set_static(mesh)
+            r.set_dynamic(TriangleMesh.empty())
+            return r.render([_view(20.0, height=6.0)], noon)[0].rgb
+        finally:
+            r.close()
+
+    per_vertex = draw()
+    vertex_fog = shaders.vertex_fog
+    # The header passes (material, falloff, thin_fog, distant, fog_start, software, fogless, night): fogless False.
+    monkeypatch.setattr(shaders, "vertex_fog", lambda *args: vertex_fog(*args[:6], False, *args[7:]))
+    assert "#define VFOG 0\n" in shaders.scene_fragment(Material.FACADE, False, False, software=True, fogless=True)
+    per_pixel = draw()
+    assert (per_vertex[..., 0] > 0).mean() > 0.5  # the wall fills most of the view
+    np.testing.assert_array_equal(per_vertex, per_pixel)

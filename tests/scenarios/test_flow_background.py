@@ -186,3 +186,27 @@ def test_the_flow_base_switches_back_on_only_what_a_start_switched_off(town):
     names = [(name, kw.get("arg0", kw.get("active"))) for name, kw in scenario.ctx.sim.background.calls]
     assert names == [("switch_route_sources", True), ("change_opposite_behavior", True)]
     assert not any(flow.active for flow in scenario.flows)
+
+
+@pytest.mark.parametrize("scenario_type", ["MergerIntoSlowTraffic", "MergerIntoSlowTrafficV2"])
+def test_merger_ends_within_2_m_of_any_same_direction_sink_point(town, scenario_type):
+    # actor_flow.py MergerIntoSlowTraffic(V2)._create_behavior: one InTriggerDistanceToLocation(ego, wp, 2) per
+    # get_same_dir_lanes(sink_wp), in parallel with the flow: the scenario ends as soon as the ego is within 2 m of
+    # any of those points, and not otherwise (an ego 5 m past the sink without having come that close drives on with
+    # the flow running, as there; ours used to end by route progress past the sink).
+    from types import SimpleNamespace
+
+    _, scenario = build(town, scenario_type)
+    sink = scenario.path[-1]
+    lanes = same_direction_lanes(sink)
+    assert len(lanes) >= 2  # the highway: the flow's lane and at least one more
+
+    def at(loc):
+        return SimpleNamespace(actors={EGO: SimpleNamespace(location=loc)})
+
+    other = next(wp for wp in lanes if wp.lane_id != sink.lane_id)
+    assert scenario.finished(at(other.transform.location))  # 0 m from another lane's sink point
+    before = move_along(sink, 1.5, forward=False)
+    assert before is not None and scenario.finished(at(before.transform.location))  # 1.5 m < 2 m
+    past = move_along(sink, 5.0)
+    assert past is not None and not scenario.finished(at(past.transform.location))  # 5 m from every sink point

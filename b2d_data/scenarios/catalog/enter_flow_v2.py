@@ -45,7 +45,7 @@ import logging
 from typing import ClassVar
 
 from b2d_data.maps import Map, Waypoint
-from b2d_data.scenarios.catalog.flows import FlowScenario
+from b2d_data.scenarios.catalog.flows import SINK_DISTANCE, FlowScenario
 from b2d_data.scenarios.catalog.interurban import flow_lane_path, location_parameter
 from b2d_data.scenarios.catalog.junctions import JunctionScenario, walk_back_to_source
 from b2d_data.scenarios.catalog.layout import Layout, register_layouts
@@ -62,8 +62,6 @@ from b2d_data.sim.api import ScenarioHint, Snapshot
 
 log = logging.getLogger(__name__)
 
-#: The ego must get this close to a sink point (m; the reference's ``_sink_distance``).
-SINK_DISTANCE = 2.0
 #: Added to the flow's length after its junction for the road-exit extension (m; the reference's ``extra_space``).
 EXTRA_SPACE = 20.0
 #: ``exit_wp`` lies this far after the route's junction exit (m; ``exit_wp.next(10)[0]``).
@@ -176,10 +174,7 @@ class EnterActorFlowV2(FlowScenario, JunctionScenario):
 
     def finished(self, snapshot: Snapshot) -> bool:
         """The ego is within 2 m of the sink point of any same-direction lane."""
-        ego = self.ctx.ego(snapshot)
-        return ego is not None and any(
-            ego.location.distance_2d(s.transform.location) < SINK_DISTANCE for s in self.sinks
-        )
+        return self.ego_near_sink(snapshot, self.sinks)
 
     def hint(self) -> ScenarioHint | None:
         """While the flow runs: the flow's sink on its lane (the expert's merge gap acceptance)."""

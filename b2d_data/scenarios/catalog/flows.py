@@ -61,6 +61,8 @@ class _FlowVehicle:
 
 #: How far ahead (m) a flow car's path goes into the scenario's hint: beyond a 4 s forecast at 21 m/s.
 PATH_HINT_LENGTH = 90.0
+#: The ego must get this close to a sink point to end a merge scenario (m; the reference's ``_sink_distance``).
+SINK_DISTANCE = 2.0
 
 
 class ActorFlow:
@@ -289,6 +291,13 @@ class FlowScenario(Scenario):
     def flow(self) -> ActorFlow | None:
         """The first flow (the only one of most types), None before the trigger."""
         return self.flows[0] if self.flows else None
+
+    def ego_near_sink(self, snapshot: Snapshot, sinks: list[Waypoint]) -> bool:
+        """LB2.0's ``InTriggerDistanceToLocation(ego, sink, _sink_distance)`` over several sink points: any fires."""
+        ego = self.ctx.ego(snapshot)
+        return ego is not None and any(
+            ego.location.distance_2d(s.transform.location) < SINK_DISTANCE for s in sinks
+        )
 
     # -- hooks ----------------------------------------------------------------------------------------------------
     def prepare_background(self, snapshot: Snapshot) -> None:

@@ -238,11 +238,10 @@ class _SlowTrafficMerge(FlowScenario):
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
         self.path: list[Waypoint] = flow_lane_path(ctx)
-        sink = self.path[-1].transform.location
-        closest = ctx.route.closest_index(sink)
-        # a route cut short of the sink (a short clip) runs the flow until the route ends
-        reaches = ctx.route.waypoints[closest].transform.location.distance_2d(sink) <= 3.0
-        self.end_index: int | None = closest if reaches else None
+        #: LB2.0 ends the scenario when the ego comes within 2 m of the sink point of any same-direction lane
+        #: (one ``InTriggerDistanceToLocation`` per ``get_same_dir_lanes(sink_wp)``); a route that stops short of the
+        #: sink, or passes it more than 2 m from every lane's point, leaves the flow running until the route ends.
+        self.sinks: list[Waypoint] = same_direction_lanes(self.path[-1])
         inside = [k for k, wp in enumerate(self.path) if wp.is_junction]
         #: metres of flow past the junction
         self.after_junction = float(len(self.path) - 1 - inside[-1]) if inside else 0.0
@@ -281,11 +280,8 @@ class _SlowTrafficMerge(FlowScenario):
         self.add_flow(self.path, initial_actors=True)
 
     def finished(self, snapshot: Snapshot) -> bool:
-        """The ego is within 2 m of the sink along the route (never when the route stops short of it)."""
-        if self.end_index is None:
-            return False
-        s = self.ctx.route.cumulative_length
-        return float(s[self.ego_route_point(snapshot)]) >= float(s[self.end_index]) - 2.0
+        """The ego is within 2 m of the sink point of any same-direction lane."""
+        return self.ego_near_sink(snapshot, self.sinks)
 
     def hint(self) -> ScenarioHint | None:
         """While the flow runs: the sink the ego merges towards."""

@@ -604,7 +604,7 @@ class Renderer:
         # read by every camera of it. llvmpipe draws a quarter of the texels: its shadow pass costs CPU.
         self.shadows = shadows
         self.shadow_size = shadow_size or (2048 if self.hardware else 1024)
-        self._shadow_maps: dict[int, tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
+        self._shadow_maps: dict[tuple[int, bool], tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
         self._shadow_map: moderngl.Texture | None = None
         self._sun_view: SunView | None = None
         self._shadow_key: tuple | None = None
@@ -770,20 +770,24 @@ class Renderer:
     def _wants_shadows(self, light: Lighting) -> bool:
         return self.shadows and light.shadow_strength > 0.0
 
-    def _shadow_target(self, size: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
-        """The depth texture (compared and filtered: 2×2 PCF on a hardware GPU, the nearest texel on a software
-        rasteriser) and framebuffer of a shadow map size."""
-        target = self._shadow_maps.get(size)
+    def _shadow_target(self, size: int, coarse: bool = False) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        """The depth texture (compared and filtered: 2×2 PCF on a hardware GPU and for the ``coarse`` map of an
+        overcast sky, the nearest texel for a software rasteriser's sharp-sun map) and framebuffer of a map size."""
+        filtered = self.hardware or coarse
+        target = self._shadow_maps.get((size, filtered))
         if target is None:
             texture = self.ctx.depth_texture((size, size))
             texture.compare_func = "<="
             # llvmpipe fetches and compares four texels per pixel for the filtered lookup: the nearest one saves
             # ~25 ms a frame of the rig in sharp sunlight (bench_lighting, weather 12), at the price of stepped edges.
-            filtering = moderngl.LINEAR if self.hardware else moderngl.NEAREST
+            # The coarse map keeps the filter: its filtered texels are what makes an overcast sky's shadows soft,
+            # and its nearest texel would draw them as blocks four times the sharp map's.
+            filtering = moderngl.LINEAR if filtered else moderngl.NEAREST
             texture.filter = (filtering, filtering)
             texture.repeat_x = False
             texture.repeat_y = False
-            target = self._shadow_maps[size] = (texture, self.ctx.framebuffer(depth_attachment=texture))
+            target = (texture, self.ctx.framebuffer(depth_attachment=texture))
+            self._shadow_maps[(size, filtered)] = target
         return target
 
     def _update_shadow_map(self, light: Lighting, centre: np.ndarray) -> None:
@@ -793,10 +797,11 @@ class Renderer:
         the penumbra (:attr:`Lighting.shadow_softness`) at the cost of one lookup, where taps a penumbra apart would
         cost four on a software rasteriser.
         """
-        size = self.shadow_size if light.shadow_softness <= 0.4 else max(128, self.shadow_size // 4)
+        coarse = light.shadow_softness > 0.4
+        size = max(128, self.shadow_size // 4) if coarse else self.shadow_size
         sun = sun_view(light.sun_dir, centre, self.SHADOW_RADIUS, size)
-        key = (self._scene_version, size, tuple(sun.viewproj.ravel().tolist()))
-        texture, fbo = self._shadow_target(size)
+        key = (self._scene_version, size, coarse, tuple(sun.viewproj.ravel().tolist()))
+        texture, fbo = self._shadow_target(size, coarse)
         self._sun_view, self._shadow_map = sun, texture
         if key == self._shadow_key:
             return

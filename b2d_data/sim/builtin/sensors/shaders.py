@@ -21,9 +21,9 @@ Every instruction a pixel runs costs llvmpipe about 2 ms a frame of the full rig
 work that can move to the vertices does. On a software rasteriser (``software`` variants) more moves, at some cost
 in image quality: the own low beam on the materials of :data:`SOFTWARE_PER_VERTEX`, the fog on all but facades by
 day in any fog and on facades too at night (:func:`vertex_fog`), and the low beam's glow in the fog with
-:data:`SOFTWARE_AIRLIGHT_SAMPLES` (the renderer also takes the shadow map's nearest texel there); without
-``software`` every source is the hardware GPU's, unchanged. Only the colour output depends on any of this: depth,
-tag and instance id come from the geometry alone.
+:data:`SOFTWARE_AIRLIGHT_SAMPLES` (the renderer also takes the nearest texel of the sharp sun's shadow map there,
+not of an overcast sky's coarse one); without ``software`` every source is the hardware GPU's, unchanged. Only the
+colour output depends on any of this: depth, tag and instance id come from the geometry alone.
 """
 
 from __future__ import annotations

@@ -221,19 +221,33 @@ def test_software_variants_move_the_own_beam_fog_and_glow_samples_to_cheaper_for
     assert "#define AIRLIGHT_SAMPLES 8\n" in shaders.sky_vertex(False, False, True)
 
 
-def test_the_shadow_map_is_filtered_on_a_gpu_and_read_at_the_nearest_texel_in_software(renderer):
-    hardware = renderer.hardware
+@pytest.mark.parametrize(("hardware", "cloudiness", "coarse", "filtering"), [
+    (False, 0.0, False, moderngl.NEAREST),  # software, sharp sun: the nearest texel (the cheap lookup)
+    (False, 60.0, True, moderngl.LINEAR),  # software, partial overcast: the coarse map stays filtered (soft edges)
+    (True, 0.0, False, moderngl.LINEAR),  # a GPU filters both
+    (True, 60.0, True, moderngl.LINEAR),
+])  # fmt: skip
+def test_the_shadow_map_is_read_at_the_nearest_texel_only_for_a_sharp_sun_in_software(renderer, hardware, cloudiness,
+                                                                                       coarse, filtering):  # fmt: skip
+    # Penumbra 0.12 + 1.2 · overcast: 0.12 m with no cloud (the sharp map), 0.84 m at cloudiness 60 (> 0.4: the map
+    # a quarter as fine, 1024 / 4 = 256 texels on llvmpipe, 2048 / 4 = 512 on a GPU). The sun still casts shadows
+    # there: strength 1 − 0.7 · 0.6 = 0.58 times the sun's 0.78 · (1 − 0.8 · 0.6) = 0.41 is above 0.06.
+    light = Lighting.from_weather(WeatherParameters(sun_altitude_angle=50.0, cloudiness=cloudiness))
+    assert (light.shadow_softness > 0.4) == coarse and light.shadow_strength > 0.0
+    renderer.set_static(TriangleMesh.from_triangles(_quad(-5.0, 5.0, 5.0), (100, 100, 100), 7, material=Material.ROAD))
+    renderer.set_dynamic(TriangleMesh.empty())
+    was = renderer.hardware
     with renderer.ctx:  # other renderers of the test session may have made their context current
         try:
-            renderer.hardware = False
-            soft, _ = renderer._shadow_target(64)
-            renderer.hardware = True
-            filtered, _ = renderer._shadow_target(32)
-        finally:
             renderer.hardware = hardware
-    assert soft.filter == (moderngl.NEAREST, moderngl.NEAREST)
-    assert filtered.filter == (moderngl.LINEAR, moderngl.LINEAR)
-    assert soft.compare_func == filtered.compare_func == "<="
+            renderer._update_shadow_map(light, np.zeros(3))
+        finally:
+            renderer.hardware = was
+    texture = renderer._shadow_map
+    assert texture is not None
+    assert texture.size[0] == (renderer.shadow_size // 4 if coarse else renderer.shadow_size)
+    assert texture.filter == (filtering, filtering)
+    assert texture.compare_func == "<="
 
 
 def test_without_fog_a_software_rasteriser_fogs_facades_per_vertex_and_draws_the_same_pixels(monkeypatch):

@@ -41,16 +41,26 @@ class GapConfig:
     lookahead: float = 60.0  # gaps are sought from this far before the planned change
     search_back: float = 70.0  # target-lane vehicles this far behind the ego count
     search_ahead: float = 90.0
+    # Bumper gaps. At a matched 15 m/s they need 3 + 3.75 + 3 + 3 = 12.75 m besides the cars' lengths (~9.4 m), so
+    # a slot opens between flow cars 25 m apart, the densest HighwayExit flow of the training ranges; headways of
+    # 0.4 s and 0.3 s needed 25.9 m for any slot and 27.9 m to aim at one (route 149130001, seed 149: a flow 15-27 m
+    # apart at 15 m/s, in which the ego stopped for good).
     front_margin: float = 3.0  # bumper gap to the gap's leader: margin + headway × own speed + closing braking
-    front_headway: float = 0.3
+    front_headway: float = 0.2
     rear_margin: float = 3.0  # bumper gap to the follower: margin + headway × its speed + Δv² / (2 × its braking)
-    rear_headway: float = 0.4
+    rear_headway: float = 0.25
     follower_brake: float = 3.0  # the follower closes in at most at its speed difference, braking this hard
     ego_acceleration: float = 2.0  # what the ego gains while it moves over, when slower than the follower
     comfortable_brake: float = 2.5
-    stop_deceleration: float = 2.0  # the braking curve toward the last point where a held change may begin
+    # the braking curve toward the last point where a held change may begin; at 2 m/s² it held the ego below a
+    # 15 m/s flow from 58 m before that point on, so a gap ahead drifted away (route 149130002, seed 149)
+    stop_deceleration: float = 3.0
     stop_margin: float = 2.0
-    position_gain: float = 0.4  # 1/s: speed offset per metre between the ego and the gap's middle
+    # drifting beside a gap: the speed offset from the gap's speed is sqrt(2 × this × distance) (m/s²), so it
+    # fades as the ego arrives and the gap still fits; no more than the desired speed ahead or this share of the
+    # gap's speed behind (a standing ego never finds a gap in a flow that does not brake: route 149130003)
+    align_acceleration: float = 1.5
+    drop_back_share: float = 0.3
     ramp_time: float = 3.0  # the lane change ramp is speed × this long, within the bounds below
     ramp_min: float = 12.0
     ramp_max: float = 30.0
@@ -79,7 +89,12 @@ class _Car:
     s: float  # along the route (m)
     half: float  # half length (m)
     speed: float
-    actor: ActorState
+    actor: ActorState | None  # None: an end of the search window
+
+
+def _actor_id(car: _Car) -> int | None:
+    """The car's actor id (None for an end of the search window)."""
+    return car.actor.id if car.actor is not None else None
 
 
 @dataclass
@@ -177,6 +192,8 @@ class LaneChangeGate:
     town: Map | None
     gap: GapConfig = field(default_factory=GapConfig)
     changes: list[_Change] | None = None
+    #: the target-lane gap being approached (its cars' ids; None for an end of the search window)
+    _aim: tuple[int | None, int | None] | None = field(default=None, init=False, repr=False)
 
     def step(
         self, snapshot_vehicles: Sequence[ActorState], ego: ActorState, route: DenseRoute, desired_speed: float
@@ -269,35 +286,46 @@ class LaneChangeGate:
         return out
 
     def _align(self, cars: list[_Car], ego_s: float, half: float, desired: float, room: float) -> float:
-        """A speed that brings the ego beside the nearest gap that fits at the gap's own speed, among those it can
-        reach within ``room`` metres of driving."""
+        """A speed that brings the ego beside the gap it can reach soonest at the gap's own speed, among those it
+        reaches before the braking curve toward the last point takes it below that speed; the soonest of all when
+        none does."""
         if not cars:
             return desired
-        best, best_cost = None, math.inf
-        for follower, leader in zip([None, *cars], [*cars, None]):
-            gap_speed = float(np.mean([c.speed for c in (follower, leader) if c is not None]))
-            lo = -math.inf if follower is None else follower.s + follower.half + self._rear_need(gap_speed, follower)
-            hi = math.inf if leader is None else leader.s - leader.half - self._front_need(gap_speed, leader)
-            if hi - lo < 2.0 * half + 2.0:
+        gap = self.gap
+        # the ends of the search window count as cars: the flow may go on unseen beyond them, and a gap open
+        # toward them kept the ego dropping back after one that receded as new cars came into view (149130020)
+        bounded = [
+            _Car(ego_s - gap.search_back, half, cars[0].speed, None),
+            *cars,
+            _Car(ego_s + gap.search_ahead, half, cars[-1].speed, None),
+        ]
+        best, best_rank = None, (False, False, -math.inf)
+        for follower, leader in zip(bounded[:-1], bounded[1:]):
+            gap_speed = (follower.speed + leader.speed) / 2.0
+            # where the ego's centre may be beside this gap at the gap's speed (1 m inside either end)
+            lo = follower.s + follower.half + half + self._rear_need(gap_speed, follower)
+            hi = leader.s - leader.half - half - self._front_need(gap_speed, leader)
+            key = (_actor_id(follower), _actor_id(leader))
+            # the gap aimed at so far is kept while it is one at all: positions come in 1 m steps, and a gap a
+            # metre short of the 2 m the choice asks for flickered in and out (route 149130020, seed 149)
+            kept = key == self._aim and hi >= lo
+            if hi - lo < 2.0 and not kept:
                 continue
-            middle = (lo + hi) / 2.0 if math.isfinite(lo + hi) else (lo + 10.0 if math.isfinite(lo) else hi - 10.0)
-            r = ego_s - middle
-            # time to reach the gap: catching up is limited by the desired speed, dropping back by the gap's speed
-            if r < 0:
-                time = -r / max(desired - gap_speed, 0.5)
-                travel = gap_speed * time - r
-            else:  # dropping back at half the gap's speed
-                time = r / max(0.5 * gap_speed, 0.5)
-                travel = r
-            if travel > room:
-                continue
-            cost = time
-            if cost < best_cost:
-                best, best_cost = (middle, gap_speed), cost
+            middle = (lo + hi) / 2.0
+            r = ego_s - float(np.clip(ego_s, min(lo + 1.0, middle), max(hi - 1.0, middle)))  # > 0: ahead of it
+            limit = gap.drop_back_share * gap_speed if r > 0 else max(desired - gap_speed, 0.5)
+            time = abs(r) / max(limit, 0.5)
+            travel = gap_speed * time - r
+            fits = travel <= room - gap.stop_margin - gap_speed * gap_speed / (2.0 * gap.stop_deceleration)
+            rank = (fits, fits and kept, -time)
+            if rank > best_rank:
+                best, best_rank = (r, gap_speed, limit, key), rank
         if best is None:
+            self._aim = None
             return desired
-        middle, gap_speed = best
-        return float(np.clip(gap_speed - self.gap.position_gain * (ego_s - middle), 0.0, desired))
+        r, gap_speed, limit, self._aim = best
+        offset = min(math.sqrt(2.0 * gap.align_acceleration * abs(r)), limit)
+        return float(np.clip(gap_speed - math.copysign(offset, r), 0.0, desired))
 
     def _follow(self, desired: float, speed: float, half: float, leader: _Car, ego_s: float) -> float:
         """IDM behind the gap's leader (its distance along the route)."""

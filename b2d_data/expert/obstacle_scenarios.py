@@ -121,6 +121,18 @@ def previous_road_lane_ids(start: Waypoint, steps: int) -> set[tuple[int, int]]:
     return ids
 
 
+def _ego_time_to(config: ExpertConfig, route: DenseRoute, ego: ActorState, to_index: int,
+                 speed: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(point ``to_index``, ego location, ego forward, time the ego needs to cover the distance to that point + its
+    length + the path-clear safety distance, accelerating to ``speed``)."""
+    to_location = route.points[min(to_index, len(route) - 1)]
+    ego_location = _xyz(ego)
+    ego_distance = float(np.linalg.norm(to_location - ego_location)) + 2.0 * ego.bounding_box.extent.x \
+        + config.path_clear_safety_distance
+    ego_time = min_time_for_distance(config, ego_distance, speed, ego.speed())
+    return to_location, ego_location, ego.transform.get_forward_vector().to_array(), ego_time
+
+
 def is_overtaking_path_clear(config: ExpertConfig, town: Map, route: DenseRoute, ego: ActorState,
                              vehicles: Sequence[ActorState], to_index: int, target_speed: float,
                              lane_ids: set[tuple[int, int]], overtake_speed: float) -> bool:
@@ -130,12 +142,8 @@ def is_overtaking_path_clear(config: ExpertConfig, town: Map, route: DenseRoute,
     speed; a vehicle ahead in the target lane blocks when it is already inside the overtaking zone or reaches
     the shift end sooner than the ego's time + 0.2 s.
     """
-    to_location = route.points[min(to_index, len(route) - 1)]
-    ego_location = _xyz(ego)
-    ego_distance = float(np.linalg.norm(to_location - ego_location)) + 2.0 * ego.bounding_box.extent.x \
-        + config.path_clear_safety_distance
-    ego_time = min_time_for_distance(config, ego_distance, min(overtake_speed, target_speed), ego.speed())
-    ego_forward = ego.transform.get_forward_vector().to_array()
+    to_location, ego_location, ego_forward, ego_time = _ego_time_to(
+        config, route, ego, to_index, min(overtake_speed, target_speed))
     for vehicle in vehicles:
         if vehicle.id == ego.id:
             continue
@@ -167,12 +175,7 @@ def is_target_lane_clear_behind(config: ExpertConfig, town: Map, route: DenseRou
     board, and the forecast stopped it in the ramp (route 151030001 on Town100, seed 151). Cars wholly ahead are
     leaders for the forecast.
     """
-    to_location = route.points[min(to_index, len(route) - 1)]
-    ego_location = _xyz(ego)
-    ego_distance = float(np.linalg.norm(to_location - ego_location)) + 2.0 * ego.bounding_box.extent.x \
-        + config.path_clear_safety_distance
-    ego_time = min_time_for_distance(config, ego_distance, target_speed, ego.speed())
-    ego_forward = ego.transform.get_forward_vector().to_array()
+    to_location, ego_location, ego_forward, ego_time = _ego_time_to(config, route, ego, to_index, target_speed)
     for vehicle in vehicles:
         if vehicle.id == ego.id:
             continue
@@ -291,11 +294,16 @@ class ObstacleScenarioManager:
             if record.path_clear:
                 log.debug("%s: target lane clear behind the ego, committing", hint.scenario_type)
                 return None
+        return self._wait_before_shift(ego, route, first, record, target_speed, hint.scenario_type)
+
+    def _wait_before_shift(self, ego: ActorState, route: DenseRoute, first: ActorState, record: ScenarioRecord,
+                           target_speed: float, kind: str) -> ObstacleResult:
+        """Wait behind a virtual standing leader just past the start of the planned shift (IDM)."""
+        cfg = self.config
         distance = (record.from_index + cfg.points(cfg.two_way_wait_offset) - route.index) / cfg.points_per_meter
         speed = idm_target_speed(cfg, target_speed, ego.speed(), ego.bounding_box.extent.x, 0.0, distance,
                                  cfg.idm_two_way_s0, cfg.idm_two_way_T)
-        return ObstacleResult(speed, reduced_by=ReducedBy(speed, first.type_id, first.id, distance),
-                              scenario=hint.scenario_type)
+        return ObstacleResult(speed, reduced_by=ReducedBy(speed, first.type_id, first.id, distance), scenario=kind)
 
     def _stand_before_props(self, ego: ActorState, route: DenseRoute, first: ActorState, target_speed: float,
                             kind: str) -> ObstacleResult:
@@ -347,11 +355,7 @@ class ObstacleScenarioManager:
             return ObstacleResult(overtake_speed, keep_driving=True, scenario=kind)
         if not record.changed_route:
             return ObstacleResult(target_speed, scenario=kind)
-        # wait: a virtual standing leader just past the start of the planned shift
-        distance = (record.from_index + cfg.points(cfg.two_way_wait_offset) - route.index) / cfg.points_per_meter
-        speed = idm_target_speed(cfg, target_speed, ego.speed(), ego.bounding_box.extent.x, 0.0, distance,
-                                 cfg.idm_two_way_s0, cfg.idm_two_way_T)
-        return ObstacleResult(speed, reduced_by=ReducedBy(speed, first.type_id, first.id, distance), scenario=kind)
+        return self._wait_before_shift(ego, route, first, record, target_speed, kind)
 
     def _hazard_two_ways(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, first: ActorState,
                          last: ActorState | None, record: ScenarioRecord, target_speed: float) -> ObstacleResult:

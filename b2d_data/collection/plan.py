@@ -258,22 +258,17 @@ class _SideTowns:
         """``count`` routes in attempt order: route ``k`` keeps the side drawn for it (seeded by the type and ``k``);
         the default town's routes are its first ones for that many (as without the move), renumbered after them."""
         from b2d_data.scenarios import placement
-        from b2d_data.scenarios.param_ranges import Choice, param_set
 
         seed, params = self.config.seed, self.config.params
-        spec = param_set(params).ranges(scenario).get("direction")
+        # missing_sides is empty for a type that draws no side, or only one
         hosts = {}
-        if isinstance(spec, Choice) and len(spec.values) > 1:
-            for side in placement.missing_sides(self.map, scenario, params):
-                host = self._host(scenario, side)
-                if host is not None:
-                    hosts[side] = host
+        for side in placement.missing_sides(self.map, scenario, params):
+            host = self._host(scenario, side)
+            if host is not None:
+                hosts[side] = host
         if not hosts:
             return placement.make_routes(self.map, scenario, count, seed, weathers, params)
-        assert isinstance(spec, Choice)
-        drawn = [
-            spec.draw(np.random.default_rng([int(seed), zlib.crc32(scenario.encode("utf-8")), k])) for k in range(count)
-        ]
+        drawn = [placement.drawn_side(scenario, params, seed, k) for k in range(count)]
         moved = {side: drawn.count(side) for side in hosts}
         stay = count - sum(moved.values())
         here = iter(placement.make_routes(self.map, scenario, stay, seed, weathers, params) if stay else [])

@@ -15,13 +15,11 @@ from __future__ import annotations
 import json
 import logging
 import os
-import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from b2d_data.collection.job import CollectConfig, with_weather
 from b2d_data.collection.plan import (
@@ -165,15 +163,13 @@ class _Placer:
 def drawn_sides(slots: Sequence[Slot], params: str, seed: int) -> dict[int, str]:
     """The ``direction`` each slot of a type that draws one of several sides gets, drawn per slot from the set's
     weights (seeded by the slot's index and type, so that a slot keeps its side whatever the other slots are)."""
-    from b2d_data.scenarios.param_ranges import Choice, param_set
+    from b2d_data.scenarios import placement
 
-    ranges = param_set(params)
     out: dict[int, str] = {}
     for slot in slots:
-        spec = ranges.ranges(slot.scenario).get("direction")
-        if isinstance(spec, Choice) and len(spec.values) > 1:
-            rng = np.random.default_rng([int(seed), zlib.crc32(slot.scenario.encode("utf-8")), slot.index])
-            out[slot.index] = spec.draw(rng)
+        side = placement.drawn_side(slot.scenario, params, seed, slot.index)
+        if side is not None:
+            out[slot.index] = side
     return out
 
 

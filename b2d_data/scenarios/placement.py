@@ -43,7 +43,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     yaw_diff,
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, scenario_class
-from b2d_data.scenarios.param_ranges import BENCH2DRIVE220, DEFAULT_PARAMS, ParamSet, param_set
+from b2d_data.scenarios.param_ranges import BENCH2DRIVE220, DEFAULT_PARAMS, Choice, ParamSet, param_set
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_xml import Route, ScenarioConfig
 
@@ -320,6 +320,15 @@ def missing_sides(
         return ()
     found = find_candidates(town, scenario_type, ranges) if candidates is None else candidates
     return tuple(side for side in sides if not any(spec.directions[side](c.trigger) for c in found))
+
+
+def drawn_side(scenario_type: str, params: str | ParamSet, seed: int, k: int) -> str | None:
+    """The ``direction`` drawn for the ``k``-th route (or preset slot) of a type that draws one of several sides,
+    seeded by (seed, type, ``k``) so that it keeps its side whatever the others draw; None for other types."""
+    spec = param_set(params).ranges(scenario_type).get("direction")
+    if not isinstance(spec, Choice) or len(spec.values) < 2:
+        return None
+    return spec.draw(np.random.default_rng([int(seed), zlib.crc32(scenario_type.encode("utf-8")), k]))
 
 
 # ------------------------------------------------------------------------------------------------ parameters

@@ -158,17 +158,19 @@ class Expert:
             target_speed = max(target_speed, min(fastest, speed_limit, lane_change_cap, cfg.max_speed_in_junction))
         if gate is not None:
             target_speed = min(target_speed, gate.step(snapshot.vehicles(), ego, route, target_speed).target_speed)
+        follower_floor = 0.0
         if flows:
             # waiting for a gap to change lanes (the gate slows down toward one, or stops at the last point) in a
             # lane whose flow never brakes: the car behind would run into the ego (route 53130004, HighwayExit on
             # Town100, seed 53: hit from behind while slowing in the flow's lane before the exit lane)
-            target_speed = max(target_speed, min(self._flow_follower_floor(snapshot, ego), speed_limit * 1.5))
+            follower_floor = min(self._flow_follower_floor(snapshot, ego), speed_limit * 1.5)
+            target_speed = max(target_speed, follower_floor)
         obstacle = self.obstacles.step(snapshot, ego, route, hints, target_speed)
         if obstacle.keep_driving:
             hazards = _Hazards(False, obstacle.target_speed, None)
         else:
             hazards = self._hazards(snapshot, ego, route, target_speed, obstacle.reduced_by, flows, paths,
-                                    crossing_lines)
+                                    crossing_lines, follower_floor)
         final_speed = min(hazards.target_speed, obstacle.target_speed)
         merging = merge_hint(hints)
         if merging is not None and not obstacle.keep_driving:
@@ -274,8 +276,11 @@ class Expert:
     def _hazards(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,
                  reduced_by: ReducedBy | None, flows: bool = False,
                  paths: Mapping[int, np.ndarray] | None = None,
-                 crossing_lines: Mapping[int, float] | None = None) -> _Hazards:
-        """Target speeds for every hazard class and their minimum (§1.6–1.7); ``brake`` when it is 0."""
+                 crossing_lines: Mapping[int, float] | None = None, follower_floor: float = 0.0) -> _Hazards:
+        """Target speeds for every hazard class and their minimum (§1.6–1.7); ``brake`` when it is 0.
+
+        ``follower_floor`` is the speed a flow car behind the ego needs it to keep (``_flow_follower_floor``).
+        """
         cfg = self.config
         ego_loc = _xyz(ego)
         speed = ego.speed()
@@ -299,6 +304,12 @@ class Expert:
                 distance = float(np.linalg.norm(_xyz(v) - ego_loc))
                 s = idm_target_speed(cfg, initial_speed, speed, 2.0 * v.bounding_box.extent.x, v.speed(), distance,
                                      cfg.idm_leading_vehicle_s0, cfg.idm_leading_vehicle_T)
+                gap = distance - v.bounding_box.extent.x - ego.bounding_box.extent.x
+                if follower_floor > s and gap > cfg.idm_leading_vehicle_s0:
+                    # A deviation from PDM-Lite: between two cars of a flow that never brakes, IDM (whose desired
+                    # speed is at most the flow's) settles below the leader's speed and the follower runs into the
+                    # ego (route 151130003, HighwayExit on Town100, seed 151). The leader's speed keeps the gap.
+                    s = max(s, min(follower_floor, v.speed()))
                 speed_leading = min(speed_leading, s)
                 result.reduced_by = _lower(result.reduced_by, initial_speed, speed_leading, v.type_id, v.id,
                                            distance)

@@ -35,7 +35,7 @@ from b2d_data.expert.route_shifting import (
     shift_route_smoothly,
 )
 from b2d_data.maps import LaneChange
-from b2d_data.sim.api import ActorState, ScenarioHint, Snapshot
+from b2d_data.sim.api import OPPOSITE_LANE_OPEN, ActorState, ScenarioHint, Snapshot
 
 if TYPE_CHECKING:
     from b2d_data.maps import Map, Waypoint
@@ -85,6 +85,16 @@ class ObstacleResult:
 def _xyz(actor: ActorState) -> np.ndarray:
     loc = actor.location
     return np.array([loc.x, loc.y, loc.z])
+
+
+def opposite_lane_open(hint: ScenarioHint) -> bool:
+    """Whether a two-way obstacle's scenario lets the ego into the opposite lane yet (True when it does not say).
+
+    Not PDM-Lite: LB2.0 switches the wrong-direction test off only 5 s after the ego came within 50 m of the
+    obstacle, and an ego that keeps its speed reaches the shift in ~4.5 s; crossing the centre line before that
+    is an outside-route-lanes infraction (route 151250001 on Town101, seed 151). The ego waits at the shift start.
+    """
+    return bool(int(hint.extra.get(OPPOSITE_LANE_OPEN, 1)))
 
 
 def horizontal_distance(a: ActorState, b: ActorState) -> float:
@@ -336,7 +346,7 @@ class ObstacleScenarioManager:
             )  # fmt: skip
             record.changed_route, record.from_index, record.to_index = True, start, end
             log.debug("%s: route shifted over [%d, %d)", kind, start, end)
-        if (record.changed_route and not record.path_clear
+        if (record.changed_route and not record.path_clear and opposite_lane_open(hint)
                 and record.from_index - route.index < cfg.points(cfg.max_distance_to_overtake_two_ways)):
             here = route.waypoint(route.index)
             target_lane = here.get_left_lane() if hint.direction == "right" else here.get_right_lane()

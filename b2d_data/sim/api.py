@@ -213,6 +213,11 @@ class Snapshot:
         return None
 
 
+#: ``ScenarioHint.extra`` key of the two-way obstacles: 1 once the scenario has switched the wrong-direction test off
+#: (LB2.0: 5 s after the ego came within 50 m of the obstacle), 0 before.
+OPPOSITE_LANE_OPEN = "opposite_lane_open"
+
+
 @dataclass(frozen=True)
 class ScenarioHint:
     """What a running scenario tells the privileged expert (PDM-Lite reads the same from the scenario runner).
@@ -221,7 +226,8 @@ class ScenarioHint:
     ``last_actor_id`` are the obstacle actors the expert plans around (same id when there is one);
     ``direction`` is the obstacle side (``left`` / ``right``); ``offset`` is InvadingTurn's lateral offset (m);
     ``paths`` maps the id of an actor that drives a fixed path (a flow's car) to its path ahead, (N, 2) world x, y
-    from where it is now (the scenario runner's agents hold the same plan).
+    from where it is now (the scenario runner's agents hold the same plan). ``extra`` holds type-specific state,
+    e.g. :data:`OPPOSITE_LANE_OPEN` of the two-way obstacles.
     """
 
     scenario_type: str

@@ -15,6 +15,7 @@ from b2d_data.expert import Expert, ExpertConfig
 from b2d_data.expert.lights_and_signs import stop_sign_affects, stop_sign_centre
 from b2d_data.format.transform import Location, Transform
 from b2d_data.maps import load_opendrive
+from b2d_data.format.transform import Vector3D
 from b2d_data.sim.api import ActorSpec, ScenarioHint, TrafficLightState
 from b2d_data.sim.builtin.world import BuiltinSimulator
 
@@ -202,3 +203,36 @@ def test_parked_obstacle_lane_change(carla_maps_dir):
     beside = [lane for loc_, lane in zip(log.location, log.lane) if abs(float((loc_ - p) @ f)) < 3.0]
     assert beside and all(lane == (left.road_id, left.lane_id) for lane in beside), "not in the left lane beside it"
     assert any(log.changed_route) and not log.changed_route[-1]  # shifted route recorded, then back to normal
+
+
+def test_between_two_cars_of_a_flow_that_never_brakes_the_ego_keeps_their_speed(carla_maps_dir):
+    # LB2.0's ActorFlow cars drive on at their speed whatever is ahead of them (HighwayExit's flow). The ego sits
+    # between two such cars at 8 m/s on Town01's straight (limit 30 km/h: its own target 0.72 x 8.33 = 6 m/s, raised
+    # to the flow's 8 m/s): the leader 14 m ahead (bumper gap 14 - 2.45 - 2.45 = 9.1 m), the follower 8 m behind
+    # (3.1 m). PDM-Lite's IDM behind the leader (desired speed 8, s0 4 m, T 0.25 s) settles below 8 m/s whatever
+    # the gap, since 1 - (v/8)^4 = 0 at v = 8, and the follower closes in until it hits the ego.
+    sim = _world(carla_maps_dir, "Town01")
+    start = sim.map.get_waypoint(sim.map.get_spawn_points()[18].location).next(20.0)[0]  # 150 m without junction
+    route = sim.map.trace_route(start.transform.location, start.next(120.0)[0].transform.location)
+    ego = _spawn_ego(sim, route)
+    flow_speed = 8.0
+    cars = []
+    for wp in (start.next(14.0)[0], start.previous(8.0)[0]):
+        t = wp.transform
+        cars.append(sim.spawn_actor(ActorSpec("vehicle.lincoln.mkz_2020", role_name="scenario"),
+                                    Transform(Location(t.location.x, t.location.y, t.location.z + 0.3), t.rotation)))
+    forward = start.transform.get_forward_vector()
+    expert = Expert(sim.map, route, CONFIG)
+    hint = ScenarioHint("HighwayExit", None, None)
+    log = Log()
+    snap = sim.tick()
+    for tick in range(200):
+        for actor_id in cars + ([ego] if tick == 0 else []):
+            sim.set_target_velocity(actor_id, Vector3D(forward.x * flow_speed, forward.y * flow_speed, 0.0))
+        sim.apply_control(ego, expert.run_step(snap, [hint]))
+        snap = sim.tick()
+        log.speed.append(snap.actors[ego].speed())
+        log.collisions.extend(c.other_id for c in snap.collisions if c.actor_id == ego)
+    assert not log.collisions
+    # within a tick's rounding of the flow's speed once settled: never slower than the follower by more than 0.3 m/s
+    assert min(log.speed[40:]) > flow_speed - 0.3

@@ -1,4 +1,4 @@
-"""The obstacle-scenario manager's handling of a construction site (props, not vehicles)."""
+"""The obstacle-scenario manager: a construction site (props, not vehicles) and the two-way overtake gate."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 from b2d_data.expert.config import ExpertConfig
 from b2d_data.expert.obstacle_scenarios import ObstacleScenarioManager
-from b2d_data.sim.api import ScenarioHint
+from b2d_data.sim.api import OPPOSITE_LANE_OPEN, ScenarioHint
 
 from .conftest import FakeWaypoint
 
@@ -75,3 +75,40 @@ def test_the_ego_commits_to_the_shift_when_the_car_behind_is_far(make_route, mak
     result, _, manager = _step(make_route, make_vehicle, 2.0, others=[car])
     assert manager.records[("ConstructionObstacle", BOARD)].path_clear
     assert 10.0 - 0.05 * 24.0 * (8.29 / 13.0) ** 2 - 0.01 < result.target_speed < 10.0
+
+
+PARKED = 5
+
+
+def _two_way_step(make_route, make_vehicle, extra):
+    """ParkedObstacleTwoWays: the ego at 10 m (10 m/s), a parked car at 20 m pushed 1.2 m right, nothing else."""
+    config = ExpertConfig()
+    route = make_route(100.0, config)
+    route.index = round(10.0 * config.points_per_meter)
+    ego = make_vehicle(EGO, 10.0, 0.0, speed=SPEED)
+    parked = make_vehicle(PARKED, 20.0, 1.2)
+    snapshot = SimpleNamespace(actors={EGO: ego, PARKED: parked}, vehicles=lambda: [ego, parked])
+    hint = ScenarioHint("ParkedObstacleTwoWays", PARKED, None, direction="right", extra=extra)
+    manager = ObstacleScenarioManager(config, town=SimpleNamespace(get_waypoint=_lane_of))
+    return manager.step(snapshot, ego, route, [hint], SPEED), manager
+
+
+def test_the_ego_waits_at_the_two_way_shift_until_the_scenario_opens_the_opposite_lane(make_route, make_vehicle):
+    # The shift starts 2.4 + 4 − 0.5 m before the car's index 200: at index 200 − int(24 + 40 − 5) = 141 (14.1 m),
+    # 4.1 m ahead of the ego, inside the 8 m decision window. With the lane still closed (LB2.0 switches the
+    # wrong-direction test off 5 s after the 50 m approach) the ego waits: IDM toward 1.5 m past the start, a gap
+    # of 15.6 − 10 − 2.4 = 3.2 m at 10 m/s: s* = 2 + 1 + 100 / (2·√(24·3.72)) = 8.29 m, dv/dt = −24·(8.29/3.2)²
+    # = −161 m/s², and at any speed down to 0 it stays below 24·(1 − (3/3.2)²) ≈ 2.9 m/s², so the target falls.
+    result, manager = _two_way_step(make_route, make_vehicle, {OPPOSITE_LANE_OPEN: 0})
+    assert not manager.records[("ParkedObstacleTwoWays", PARKED)].path_clear
+    assert not result.keep_driving
+    assert result.target_speed < SPEED - 0.05 * 24.0  # braking harder than 24 m/s² over the 0.05 s step
+    assert result.reduced_by is not None and result.reduced_by.actor_id == PARKED
+
+
+def test_the_ego_commits_once_the_opposite_lane_is_open_or_when_the_scenario_does_not_say(make_route, make_vehicle):
+    # the opposite lane is empty: the path-clear test passes and the ego commits at PDM-Lite's 50 km/h
+    for extra in ({OPPOSITE_LANE_OPEN: 1}, {}):
+        result, manager = _two_way_step(make_route, make_vehicle, extra)
+        assert manager.records[("ParkedObstacleTwoWays", PARKED)].path_clear
+        assert result.keep_driving and result.target_speed == 50.0 / 3.6

@@ -23,7 +23,7 @@ from b2d_data.scenarios.placement import make_routes
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_runner import RouteRunner
 from b2d_data.sim import blueprints
-from b2d_data.sim.api import ActorKind, ActorSpec, TrafficLightState
+from b2d_data.sim.api import OPPOSITE_LANE_OPEN, ActorKind, ActorSpec, TrafficLightState
 from b2d_data.sim.builtin.world import BuiltinSimulator
 
 TYPES = (
@@ -597,3 +597,23 @@ def test_parking_cut_in_gives_the_road_extra_room_only_during_the_cut_in(town):
     assert {extra for driving, extra in seen if not driving} == {0.0}
     assert {extra for driving, extra in seen if driving} == {20.0}
     assert bg[0].settings.extra_space == 0.0  # given back at the end
+
+
+def test_the_two_way_hint_opens_the_opposite_lane_with_the_wrong_direction_switch(town):
+    # LB2.0 (route_obstacles.py, ParkedObstacleTwoWays._create_behavior): 50 m approach, Idle(5), then
+    # SwitchWrongDirectionTest(False) and the opposite flow; the expert's hint says so from the same tick on.
+    route = make_routes(town, "ParkedObstacleTwoWays", 1, seed=0, params="bench2drive220")[0]
+    seen: list[tuple[int, bool]] = []  # (opposite_lane_open, wrong-direction switched off at this tick)
+
+    def watch(snap, dense, manager):
+        off = (SWITCH_WRONG_DIRECTION, False) in manager.pop_switches()
+        for hint in manager.hints():
+            seen.append((int(hint.extra[OPPOSITE_LANE_OPEN]), off))
+
+    trace = run_scripted(town, route, on_tick=watch)
+    assert list(trace.statuses.values()) == [ScenarioStatus.SUCCESS]
+    first_open = next(k for k, (flag, _) in enumerate(seen) if flag == 1)
+    assert first_open > 0 and all(flag == 0 for flag, _ in seen[:first_open])
+    assert all(flag == 1 for flag, _ in seen[first_open:])
+    switched = [k for k, (_, off) in enumerate(seen) if off]
+    assert switched == [first_open]

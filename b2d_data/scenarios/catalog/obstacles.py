@@ -56,7 +56,7 @@ from b2d_data.scenarios.framework import (
     register,
 )
 from b2d_data.scenarios.triggers import DistanceTrigger, Timer, is_in_front
-from b2d_data.sim.api import ActorState, ScenarioHint, SimulatorError, Snapshot
+from b2d_data.sim.api import OPPOSITE_LANE_OPEN, ActorState, ScenarioHint, SimulatorError, Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -166,6 +166,10 @@ class RoadObstacle(Scenario):
     def react(self, snapshot: Snapshot) -> None:
         """What happens 5 s after the ego came within 50 m of the obstacle."""
 
+    def hint_extra(self) -> dict[str, float | int | str]:
+        """Scenario state the expert may read besides the obstacle actors (none here)."""
+        return {}
+
     def step(self, snapshot: Snapshot) -> None:
         """Per-tick work of the scenario's own actors (flows)."""
 
@@ -269,6 +273,10 @@ class OppositeFlowObstacle(RoadObstacle):
             return None
         return ActorFlow(self.ctx.sim, self.ctx.rng, path, limit / 3.6, self.frequency, constant_velocity=False)
 
+    def hint_extra(self) -> dict[str, float | int | str]:
+        """``opposite_lane_open``: 1 once the wrong-direction test is off (the reaction), else 0."""
+        return {OPPOSITE_LANE_OPEN: int(self.reacting)}
+
     def react(self, snapshot: Snapshot) -> None:
         """Allow the wrong direction, pause the normal opposite traffic, start the opposite flow."""
         self.request_switch(SWITCH_WRONG_DIRECTION, False)
@@ -317,7 +325,7 @@ class ParkedCarSite(RoadObstacle):
         """The parked car (no last actor), obstacle side."""
         if self.first_id is None:
             return None
-        return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction)
+        return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction, extra=self.hint_extra())
 
 
 class AccidentSite(RoadObstacle):
@@ -360,7 +368,8 @@ class AccidentSite(RoadObstacle):
         """Police car → last crashed car, obstacle side."""
         if self.first_id is None:
             return None
-        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction)
+        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction,
+                            extra=self.hint_extra())
 
 
 class ConstructionSite(RoadObstacle):
@@ -456,7 +465,8 @@ class ConstructionSite(RoadObstacle):
         """Warning board → last cone, obstacle side."""
         if self.first_id is None:
             return None
-        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction)
+        return ScenarioHint(self.xml_type, self.first_id, self.last_id, direction=self.direction,
+                            extra=self.hint_extra())
 
 
 # ------------------------------------------------------------------------------------------------ the types

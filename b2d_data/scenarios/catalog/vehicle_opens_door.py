@@ -146,7 +146,7 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         """The parked car (no last actor), on the ``direction`` side."""
         if self.first_id is None:
             return None
-        return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction)
+        return ScenarioHint(self.xml_type, self.first_id, None, direction=self.direction, extra=self.hint_extra())
 
 
 # ------------------------------------------------------------------------------------------------ placement

@@ -353,10 +353,19 @@ class ObstacleScenarioManager:
             if target_lane is None:
                 return ObstacleResult(target_speed, scenario=kind)
             lane_ids = previous_road_lane_ids(target_lane, cfg.path_clear_lane_trace_distance)
-            record.path_clear = is_overtaking_path_clear(
-                cfg, self.town, route, ego, snapshot.vehicles(), record.to_index, target_speed, lane_ids,
-                overtake_speed,
-            )  # fmt: skip
+            if here.lane_id * target_lane.lane_id > 0:
+                # a route file's two-way type on a multi-lane road (Bench2Drive v0.0.4 val 25783, Town04): LB2.0's
+                # "opposite" flow drives the ego's way in the lane to its left, coming from behind; the oncoming
+                # test saw its cars ahead, driving away, as inside the overtaking zone and waited for good
+                ramp_end = record.from_index + cfg.points(cfg.transition_length_two_ways)
+                record.path_clear = is_target_lane_clear_behind(
+                    cfg, self.town, route, ego, snapshot.vehicles(), ramp_end, target_speed, lane_ids,
+                )  # fmt: skip
+            else:
+                record.path_clear = is_overtaking_path_clear(
+                    cfg, self.town, route, ego, snapshot.vehicles(), record.to_index, target_speed, lane_ids,
+                    overtake_speed,
+                )  # fmt: skip
             if record.path_clear:
                 log.debug("%s: overtaking path clear, committing", kind)
         if record.path_clear:

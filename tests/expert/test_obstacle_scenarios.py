@@ -112,3 +112,35 @@ def test_the_ego_commits_once_the_opposite_lane_is_open_or_when_the_scenario_doe
         result, manager = _two_way_step(make_route, make_vehicle, extra)
         assert manager.records[("ParkedObstacleTwoWays", PARKED)].path_clear
         assert result.keep_driving and result.target_speed == 50.0 / 3.6
+
+
+def _same_direction_lane_of(location):
+    """A one-way road: the ego's lane −2 along y = 0, the same-direction lane −1 left of it (−y) beyond 1.75 m."""
+    return FakeWaypoint(location.x, -3.5, -1) if location.y < -1.75 else FakeWaypoint(location.x, 0.0, -2)
+
+
+def _multi_lane_two_way_step(make_route, make_vehicle, flow_car):
+    """ParkedObstacleTwoWays as a route file may put it on a one-way two-lane road: the ego on lane −2 at 10 m
+    (10 m/s), a parked car at 20 m pushed 1.2 m right, the scenario's flow car in lane −1, the lane open."""
+    config = ExpertConfig()
+    route = make_route(100.0, config, lane_id=-2)
+    route.index = round(10.0 * config.points_per_meter)
+    ego = make_vehicle(EGO, 10.0, 0.0, speed=SPEED)
+    parked = make_vehicle(PARKED, 20.0, 1.2)
+    snapshot = SimpleNamespace(actors={EGO: ego, PARKED: parked, CAR: flow_car},
+                               vehicles=lambda: [ego, parked, flow_car])
+    hint = ScenarioHint("ParkedObstacleTwoWays", PARKED, None, direction="right", extra={OPPOSITE_LANE_OPEN: 1})
+    manager = ObstacleScenarioManager(config, town=SimpleNamespace(get_waypoint=_same_direction_lane_of))
+    return manager.step(snapshot, ego, route, [hint], SPEED), manager
+
+
+def test_a_same_direction_flow_lane_is_judged_by_the_cars_behind(make_route, make_vehicle):
+    # LB2.0's OppositeActorFlow runs on the obstacle's get_left_lane() whatever its direction (route_obstacles.py);
+    # on a one-way road (Bench2Drive v0.0.4 val 25783, 25727, 25986 on Town04) its cars come up from behind in the
+    # ego's direction. A flow car 20 m ahead driving away is a leader, not a block (the oncoming test saw it inside
+    # the overtaking zone and the ego waited until TickRuntime); one 22 m behind at 20 m/s blocks as for the
+    # construction shift (its front reaches the ramp end well before the ego has covered ramp + length + 10 m).
+    result, manager = _multi_lane_two_way_step(make_route, make_vehicle, make_vehicle(CAR, 30.0, -3.5, speed=SPEED))
+    assert manager.records[("ParkedObstacleTwoWays", PARKED)].path_clear and result.keep_driving
+    result, manager = _multi_lane_two_way_step(make_route, make_vehicle, make_vehicle(CAR, -12.0, -3.5, speed=20.0))
+    assert not manager.records[("ParkedObstacleTwoWays", PARKED)].path_clear and not result.keep_driving

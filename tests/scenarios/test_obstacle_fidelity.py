@@ -390,28 +390,58 @@ def test_the_emergency_vehicle_counts_as_in_front_as_wait_until_in_front(town, a
     assert scenario._passed is passed
 
 
-# ------------------------------------------------------------------------------------------------ row 41: door, left
+# ------------------------------------------------------------------------------------------------ rows 41, 10: the flow lane
 
 
-def _left_parking_road() -> str:
-    """One straight 400 m road heading east: lane 1 driving (westbound), -1 parking 2.5 m, -2 driving, -3 sidewalk."""
+def _lane(lane_id: int, kind: str, width: float) -> str:
+    return (f'<lane id="{lane_id}" type="{kind}" level="false"><width sOffset="0" a="{width}" b="0" c="0" d="0"/>'
+            '<roadMark sOffset="0" type="solid" color="white" width="0.15" laneChange="none"/></lane>')  # fmt: skip
 
-    def lane(lane_id: int, kind: str, width: float) -> str:
-        return (f'<lane id="{lane_id}" type="{kind}" level="false"><width sOffset="0" a="{width}" b="0" c="0" d="0"/>'
-                '<roadMark sOffset="0" type="solid" color="white" width="0.15" laneChange="none"/></lane>')  # fmt: skip
 
+def _straight_road(name: str, left: str, right: str) -> str:
+    """One straight 400 m road heading east (40 km/h) with the given OpenDRIVE left and right lanes."""
     return (
-        '<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="4" name="LeftParking"/>'
+        f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="4" name="{name}"/>'
         '<road name="Road 1" length="400" id="1" junction="-1"><link/>'
         '<type s="0" type="town"><speed max="40" unit="km/h"/></type>'
         '<planView><geometry s="0" x="0" y="0" hdg="0" length="400"><line/></geometry></planView>'
         '<elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/></elevationProfile>'
         '<lanes><laneOffset s="0" a="0" b="0" c="0" d="0"/><laneSection s="0">'
-        f'<left>{lane(1, "driving", 3.5)}</left>'
+        f'{"<left>" + left + "</left>" if left else ""}'
         '<center><lane id="0" type="none" level="false"/></center>'
-        f'<right>{lane(-1, "parking", 2.5)}{lane(-2, "driving", 3.5)}{lane(-3, "sidewalk", 2.0)}</right>'
+        f'<right>{right}</right>'
         "</laneSection></lanes></road></OpenDRIVE>"
     )
+
+
+def _left_parking_road() -> str:
+    """Lane 1 driving (westbound), -1 parking 2.5 m, -2 driving, -3 sidewalk."""
+    return _straight_road("LeftParking", _lane(1, "driving", 3.5),
+                          _lane(-1, "parking", 2.5) + _lane(-2, "driving", 3.5) + _lane(-3, "sidewalk", 2.0))
+
+
+def _one_way_road() -> str:
+    """One-way, eastbound: lanes -1 and -2 driving, -3 parking 2.5 m, -4 sidewalk; nothing left of lane -1."""
+    return _straight_road("OneWay", "", _lane(-1, "driving", 3.5) + _lane(-2, "driving", 3.5)
+                          + _lane(-3, "parking", 2.5) + _lane(-4, "sidewalk", 2.0))
+
+
+def _on_road(tmp_path, xodr: str, scenario_type: str, y: float, **params: str):
+    """``scenario_type`` triggered at x = 150 on the eastbound lane at CARLA ``y``, on a route along that lane."""
+    from b2d_data.format.road_option import RoadOption
+    from b2d_data.format.transform import Rotation
+    from b2d_data.scenarios.route_xml import ScenarioConfig
+
+    path = tmp_path / "Road.xodr"
+    path.write_text(xodr)
+    town = load_opendrive(path)
+    lane = lane_walk(town.get_waypoint(Location(5.0, y, 0.0)), 390.0)
+    dense = DenseRoute.from_pairs([(wp, RoadOption.LANEFOLLOW) for wp in lane], town)
+    config = ScenarioConfig(f"{scenario_type}_1", scenario_type, Transform(Location(150.0, y, 0.0), Rotation(yaw=0.0)),
+                            {tag: {"value": value} for tag, value in params.items()})  # fmt: skip
+    ctx = ScenarioContext(sim=None, map=town, route=dense, config=config,  # type: ignore[arg-type]
+                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
+    return scenario_class(scenario_type)(ctx)
 
 
 def test_vehicle_opens_door_left_anchors_the_flow_two_lanes_left(tmp_path):
@@ -420,23 +450,9 @@ def test_vehicle_opens_door_left_anchors_the_flow_two_lanes_left(tmp_path):
     # for lane -1 is lane 1 (CARLA's GetLeft flips |id| = 1): the westbound driving lane. OppositeActorFlow walks
     # that lane its own way: with the 40 km/h limit, 1.5 x 40 + 30 = 90 m, so from x = 200 + 90 = 290 (source,
     # previous) to 200 - 90 = 110 (sink, next). (We refused: no opposite driving lane left of the ego's lane.)
-    from b2d_data.format.transform import Rotation
-    from b2d_data.scenarios.route_xml import ScenarioConfig
-
-    path = tmp_path / "LeftParking.xodr"
-    path.write_text(_left_parking_road())
-    town = load_opendrive(path)
     y = 2.5 + 3.5 / 2.0  # lane -2's centre, CARLA y (OpenDRIVE's right is CARLA's +y)
-    from b2d_data.format.road_option import RoadOption
-
-    lane = lane_walk(town.get_waypoint(Location(5.0, y, 0.0)), 390.0)
-    dense = DenseRoute.from_pairs([(wp, RoadOption.LANEFOLLOW) for wp in lane], town)
-    config = ScenarioConfig("VehicleOpensDoorTwoWays_1", "VehicleOpensDoorTwoWays",
-                            Transform(Location(150.0, y, 0.0), Rotation(yaw=0.0)),
-                            {"direction": {"value": "left"}, "distance": {"value": "50"}})  # fmt: skip
-    ctx = ScenarioContext(sim=None, map=town, route=dense, config=config,  # type: ignore[arg-type]
-                          rng=np.random.default_rng(0), ego_id=EGO)  # fmt: skip
-    scenario = scenario_class("VehicleOpensDoorTwoWays")(ctx)
+    scenario = _on_road(tmp_path, _left_parking_road(), "VehicleOpensDoorTwoWays", y, direction="left",
+                        distance="50")  # fmt: skip
     assert scenario.side_waypoint.lane_id == -1
     scenario._reference_limit = 40.0
     flow = scenario._make_flow()
@@ -444,6 +460,40 @@ def test_vehicle_opens_door_left_anchors_the_flow_two_lanes_left(tmp_path):
     assert {wp.lane_id for wp in flow.waypoints} == {1}
     assert flow.waypoints[0].transform.location.x == pytest.approx(290.0, abs=1.0)
     assert flow.waypoints[-1].transform.location.x == pytest.approx(110.0, abs=1.0)
+
+
+@pytest.mark.parametrize(("scenario_type", "anchor_x"), (
+    ("ParkedObstacleTwoWays", 200.0), ("AccidentTwoWays", 216.0), ("ConstructionObstacleTwoWays", 200.0),
+    ("VehicleOpensDoorTwoWays", 200.0),
+))  # fmt: skip
+def test_two_way_types_on_a_one_way_road_run_their_flow_on_the_left_lane(tmp_path, scenario_type, anchor_x):
+    # route_obstacles.py AccidentTwoWays / ParkedObstacleTwoWays / ConstructionObstacleTwoWays._create_behavior:
+    # reference_wp = <obstacle wp>.get_left_lane(), ValueError only when it is None; vehicle_opens_door.py the same
+    # with parked_wp (for direction=right the lane right of the ego's, so reference_wp is the ego's lane). CARLA's
+    # Map::GetLeft returns any lane present, whatever its type or direction. OppositeActorFlow then walks
+    # reference_wp its own way (_move_waypoint_backwards / _forward, 1.5 x 40 + 30 = 90 m here): on this one-way
+    # road the "opposite" flow drives east like the ego, from anchor - 90 to anchor + 90. The obstacle (the door
+    # car) stands 50 m after the trigger at x = 150; AccidentTwoWays anchors beside its 2nd car, 10 + 6 m further.
+    # Bench2Drive v0.0.4 validation routes 25783, 25727 (AccidentTwoWays) and 25986 (ParkedObstacleTwoWays) on
+    # Town04 are such places; we refused them ("no opposite driving lane left of road 39 lane 4").
+    y = 3.5 + 3.5 / 2.0  # lane -2's centre
+    scenario = _on_road(tmp_path, _one_way_road(), scenario_type, y, distance="50")
+    scenario._reference_limit = 40.0
+    flow = scenario._make_flow()
+    assert flow is not None
+    lane = -2 if scenario_type == "VehicleOpensDoorTwoWays" else -1
+    assert {wp.lane_id for wp in flow.waypoints} == {lane}
+    assert flow.waypoints[0].transform.location.x == pytest.approx(anchor_x - 90.0, abs=1.0)
+    assert flow.waypoints[-1].transform.location.x == pytest.approx(anchor_x + 90.0, abs=1.0)
+
+
+def test_two_way_types_refuse_only_where_no_lane_lies_left(tmp_path):
+    # route_obstacles.py: `if not reference_wp: raise ValueError("Couldnt find a left lane ...")`: on the one-way
+    # road's lane -1 nothing lies to the left (no lane 1), the one place LB2.0 refuses.
+    from b2d_data.scenarios.framework import ScenarioSetupError
+
+    with pytest.raises(ScenarioSetupError, match="no lane left of road 1 lane -1"):
+        _on_road(tmp_path, _one_way_road(), "ParkedObstacleTwoWays", 3.5 / 2.0, distance="50")
 
 
 def test_dynamic_object_crossing_leaves_crossing_space_as_the_walker_sets_off(town):

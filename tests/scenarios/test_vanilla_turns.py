@@ -93,3 +93,33 @@ def test_green_light_routes_start_10_m_before_the_junction_and_trigger_2_or_4_m_
         gaps.append(gap)
     # both keypoints occur (uniform trigger offset 6–8 m, rounded to the 2 m keypoints)
     assert min(gaps) < 3.1 and max(gaps) > 3.9
+
+
+#: Bench2Drive v0.0.4 validation route 27870's keypoints (a subset, same roads): south into Town04 junction 621,
+#: turning left.
+ROUTE_27870 = ((313.9, -100.2), (313.9, -104.2), (329.3, -117.7), (335.3, -117.6), (351.4, -132.5))
+
+
+def test_non_signalized_turn_sets_up_at_a_signalised_junction():
+    # Bench2Drive vanilla_turn.py VanillaNonSignalizedTurn: _initialize_actors (VanillaJunctionTurn's) only walks
+    # next(1.0)[0] to the first junction; unlike the signalised siblings it never calls
+    # get_traffic_lights_in_junction, and _create_behavior is the end condition alone. So it sets up at junction 621,
+    # which has lights, and forces none. (We refused: "junction 621 has traffic lights".)
+    from b2d_data.collection.towns import load_map, shipped_town
+    from b2d_data.format.transform import Rotation
+    from b2d_data.scenarios.catalog.vanilla_turns import VanillaNonSignalizedTurn
+    from b2d_data.scenarios.route_xml import ScenarioConfig
+
+    town04 = load_map(shipped_town("Town04"))
+    dense = DenseRoute.from_keypoints(town04, [Location(x, y, 0.0) for x, y in ROUTE_27870])
+    sim = BuiltinSimulator(town04, seed=0)
+    start = dense.waypoints[0].transform
+    ego = sim.spawn_actor(ActorSpec(EGO_TYPE_ID, role_name="hero"), Transform(start.location, start.rotation))
+    config = ScenarioConfig("VanillaNonSignalizedTurn_1", "VanillaNonSignalizedTurn",
+                            Transform(Location(313.9, -107.2, 0.0), Rotation(yaw=270.5)), {})
+    scenario = VanillaNonSignalizedTurn(ScenarioContext(sim, town04, dense, config, np.random.default_rng(0), ego))
+    scenario.build()
+    snapshot = sim.snapshot()
+    assert scenario.junction.id == 621 and scenario.junction_lights(snapshot)
+    scenario.start(snapshot)
+    assert sim.snapshot().traffic_lights == snapshot.traffic_lights  # nothing forced

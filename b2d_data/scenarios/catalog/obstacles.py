@@ -43,7 +43,6 @@ from b2d_data.scenarios.catalog.road_geometry import (
     move_before_junction,
     neighbour,
     offset_transform,
-    opposite_driving_neighbour,
     same_direction_driving_neighbour,
 )
 from b2d_data.scenarios.controllers import park
@@ -234,24 +233,34 @@ class OppositeFlowObstacle(RoadObstacle):
         self._reference_limit: float | None = None
 
     def flow_anchor(self) -> Waypoint:
-        """The ego-lane point whose left lane anchors the opposite flow (LB2.0: the obstacle's lane point)."""
+        """The lane point whose left lane carries the opposite flow (LB2.0: the obstacle's lane point)."""
         return self.obstacle_waypoint
 
+    def flow_lane(self) -> Waypoint | None:
+        """The lane the flow runs on: LB2.0's ``reference_wp = <anchor>.get_left_lane()``, of any type and
+        direction (route_obstacles.py ``AccidentTwoWays._create_behavior`` and its twins)."""
+        return self.flow_anchor().get_left_lane()
+
     def check_layout(self) -> None:
-        """Needs an opposite-direction driving lane to the left of the ego's lane."""
-        anchor = self.flow_anchor()
-        if opposite_driving_neighbour(anchor) is None:
+        """Needs a lane left of the anchor, LB2.0's only check (``if not reference_wp: raise``).
+
+        Route files put these types on multi-lane roads too (Bench2Drive v0.0.4 validation routes 25783, 25727,
+        25986 on Town04): there LB2.0's "opposite" flow drives the ego's way in the lane to its left. Generated
+        routes still get real two-way streets from their placement (``obstacles_placement.py``).
+        """
+        if self.flow_lane() is None:
+            anchor = self.flow_anchor()
             raise ScenarioSetupError(
-                f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road "
-                f"{anchor.road_id} lane {anchor.lane_id} at the obstacle"
+                f"{self.name}: no lane left of road {anchor.road_id} lane {anchor.lane_id} at the obstacle for the "
+                "opposite flow"
             )
 
     def _make_flow(self) -> ActorFlow | None:
-        opposite = opposite_driving_neighbour(self.flow_anchor())
-        if opposite is None:
+        lane = self.flow_lane()
+        if lane is None:
             return None
-        # the opposite lane drives against the ego: its source lies ahead of the obstacle (its "previous")
-        return self._flow_along(opposite, move_before_junction)
+        # walked the lane's own way: an opposite lane's source lies ahead of the obstacle (its "previous")
+        return self._flow_along(lane, move_before_junction)
 
     def ego_speed_limit(self, snapshot: Snapshot) -> float:
         """The speed limit (km/h) at the ego's route point: LB2.0's ``ego.get_speed_limit()``."""

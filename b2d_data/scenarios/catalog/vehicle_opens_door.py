@@ -22,16 +22,13 @@ from typing import ClassVar
 
 from b2d_data.maps import LaneType, Map, Waypoint
 from b2d_data.scenarios.catalog.actor_choices import half_extent, random_car_with_doors
-from b2d_data.scenarios.catalog.flows import ActorFlow
 from b2d_data.scenarios.catalog.layout import STRAIGHTISH, Layout, register_layouts, two_way_single
 from b2d_data.scenarios.catalog.obstacles import OppositeFlowObstacle
 from b2d_data.scenarios.catalog.obstacles_placement import opposite_flow_room, opposite_flow_room_at
 from b2d_data.scenarios.catalog.road_geometry import (
     move_along,
-    move_before_junction,
     neighbour,
     offset_transform,
-    opposite_driving_neighbour,
 )
 from b2d_data.scenarios.controllers import park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
@@ -86,23 +83,9 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         self.side_waypoint = side
 
     def flow_anchor(self) -> Waypoint:
-        """LB2.0's ``parked_wp.get_left_lane()``: the ego's lane for ``right``, two lanes left of it for ``left``."""
-        anchor = self.side_waypoint.get_left_lane()
-        if anchor is None:
-            raise ScenarioSetupError(f"{self.name}: no lane left of the parked car for the flow")
-        return anchor
-
-    def check_layout(self) -> None:
-        """``right`` needs the two-way road as before; ``left`` only a lane beyond the car (LB2.0's only check)."""
-        if self.direction == "right":
-            if opposite_driving_neighbour(self.obstacle_waypoint) is None:
-                wp = self.obstacle_waypoint
-                raise ScenarioSetupError(
-                    f"{self.name}: layout 'two_way_street' missing: no opposite driving lane left of road "
-                    f"{wp.road_id} lane {wp.lane_id} at the car"
-                )
-        else:
-            self.flow_anchor()
+        """The parked car's lane point: LB2.0's flow runs on ``parked_wp.get_left_lane()`` (:meth:`flow_lane`),
+        the ego's lane for ``right``, two lanes left of it for ``left``; a missing one is LB2.0's only refusal."""
+        return self.side_waypoint
 
     def build(self) -> None:
         """The parked car, pushed toward the driving lane, hand brake on."""
@@ -120,11 +103,6 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         if not self.door_opened and self._door_trigger.check(ego):
             self.open_door()
         return self.door_opened and self._flow_wait.check(snapshot)
-
-    def _make_flow(self) -> ActorFlow | None:
-        """LB2.0's flow of this scenario on :meth:`flow_anchor`'s lane, walked its own way from as far behind the
-        car to as far beyond it (for ``right``: the ego's lane, from behind the car to beyond it)."""
-        return self._flow_along(self.flow_anchor(), move_before_junction)
 
     def open_door(self) -> None:
         """Open the traffic-side front door and stop the background behind the ego."""

@@ -496,6 +496,37 @@ def test_two_way_types_refuse_only_where_no_lane_lies_left(tmp_path):
         _on_road(tmp_path, _one_way_road(), "ParkedObstacleTwoWays", 3.5 / 2.0, distance="50")
 
 
+def _narrow_shoulder_road() -> str:
+    """Lane 1 driving (westbound), -1 driving, -2 shoulder only 1 m wide, -3 sidewalk."""
+    return _straight_road("NarrowShoulder", _lane(1, "driving", 3.5),
+                          _lane(-1, "driving", 3.5) + _lane(-2, "shoulder", 1.0) + _lane(-3, "sidewalk", 2.0))
+
+
+@pytest.mark.parametrize(("xodr", "y", "side_lane", "side_type"), (
+    pytest.param(_narrow_shoulder_road, 3.5 / 2.0, -2, LaneType.SHOULDER, id="1m-shoulder"),
+    pytest.param(_one_way_road, 3.5 / 2.0, -2, LaneType.DRIVING, id="driving-lane"),
+))  # fmt: skip
+def test_vehicle_opens_door_parks_in_whatever_lane_lies_to_its_side(tmp_path, xodr, y, side_lane, side_type):
+    # vehicle_opens_door.py VehicleOpensDoorTwoWays._initialize_actors: parked_wp = front_wp.get_right_lane() (for
+    # direction=right), of any lane type and width; it raises only where that is None (or the car cannot spawn),
+    # and _create_behavior only where parked_wp.get_left_lane() is None. So a 1 m shoulder, or the driving lane
+    # right of the ego's on a one-way road, holds the car. (We refused both: "no parking lane or shoulder at least
+    # 2 m wide".)
+    scenario = _on_road(tmp_path, xodr(), "VehicleOpensDoorTwoWays", y, distance="50")
+    assert (scenario.side_waypoint.lane_id, scenario.side_waypoint.lane_type) == (side_lane, side_type)
+    assert scenario.side_waypoint.transform.location.x == pytest.approx(200.0, abs=0.5)
+    assert scenario.flow_lane().lane_id == -1
+
+
+def test_vehicle_opens_door_refuses_only_where_no_lane_lies_to_its_side(tmp_path):
+    # vehicle_opens_door.py: `if self._parked_wp is None: raise ValueError("Couldn't find a spot ...")`; lane -1 of
+    # this road with direction=left has nothing to its left (a one-way road).
+    from b2d_data.scenarios.framework import ScenarioSetupError
+
+    with pytest.raises(ScenarioSetupError, match="no lane left of road 1 lane -1 at the car"):
+        _on_road(tmp_path, _one_way_road(), "VehicleOpensDoorTwoWays", 3.5 / 2.0, distance="50", direction="left")
+
+
 def test_dynamic_object_crossing_leaves_crossing_space_as_the_walker_sets_off(town):
     # object_crash_vehicle.py DynamicObjectCrossing._create_behavior: after the TTA / min-distance trigger the
     # sequence runs LeaveCrossingSpace(self._collision_wp) in route mode, then KeepVelocity moves the walker;

@@ -32,6 +32,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     flow_into_exit,
     move_along,
     same_direction_lanes,
+    straightest_connection,
 )
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, register
 from b2d_data.scenarios.triggers import DriveDistance, WaitEndIntersection
@@ -61,7 +62,7 @@ class JunctionFlowTurn(FlowScenario, JunctionScenario):
                 f"{self.name}: layout missing: junction {self.junction.id} has no entry from the {self.flow_direction}"
             )
         self.sink_distance = self.sink_factor * self.flow_speed
-        options = []
+        options, preferred = [], []
         for entry in self.entry_choices(entries):
             conn = self.flow_connection(entry)
             if conn is None:
@@ -71,6 +72,11 @@ class JunctionFlowTurn(FlowScenario, JunctionScenario):
             except ScenarioSetupError:
                 continue
             options.append((entry, path))
+            if self.preferred(conn):
+                preferred.append((entry, path))
+        # entries whose flow really goes straight first (generated routes' builds pick as before); the others only
+        # where no entry does, as LB2.0 would then still build (``generate_target_waypoint`` has no angle limit)
+        options = preferred or options
         if not options:
             raise ScenarioSetupError(
                 f"{self.name}: layout missing: no {self.flow_direction} entry of junction {self.junction.id} "
@@ -92,8 +98,14 @@ class JunctionFlowTurn(FlowScenario, JunctionScenario):
         return "goes straight on"
 
     def flow_connection(self, entry: Waypoint) -> JunctionLane | None:
-        """The flow's way through the junction from ``entry`` (straight on), None if there is none."""
-        return connection(self.lanes, entry, "straight")
+        """The flow's way through the junction from ``entry``: LB2.0's ``generate_target_waypoint(source, 0)``, the
+        straightest branch at any angle (signalized_junction_left_turn.py / _right_turn.py ``_initialize_actors``),
+        None only where the lane has no connection."""
+        return straightest_connection(self.lanes, entry)
+
+    def preferred(self, conn: JunctionLane) -> bool:
+        """Whether the flow's connection is the kind the scenario is about (straight on), chosen before others."""
+        return conn.turn == "straight"
 
     def pick(self, options: list[tuple[Waypoint, list[Waypoint]]]) -> tuple[Waypoint, list[Waypoint]]:
         """Which of the usable entries (with their flow paths) the flow takes."""
@@ -187,6 +199,10 @@ class LeftTurnEnterFlow(LeftTurnAcrossFlow):
     def flow_connection(self, entry: Waypoint) -> JunctionLane | None:
         """The right turn from ``entry`` that ends on the ego's exit road."""
         return flow_into_exit(self.lanes, entry, self.ego_exit)
+
+    def preferred(self, conn: JunctionLane) -> bool:
+        """Every right turn into the ego's exit road is the scenario's flow."""
+        return True
 
 
 @register

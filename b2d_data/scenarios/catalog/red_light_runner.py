@@ -31,6 +31,7 @@ from b2d_data.scenarios.catalog.road_geometry import (
     entries_from,
     line_intersection,
     offset_transform,
+    straightest_connection,
 )
 from b2d_data.scenarios.controllers import ConstantVelocityAgent, PathTrack, park
 from b2d_data.scenarios.framework import ScenarioContext, ScenarioSetupError, ScenarioStatus, register
@@ -63,11 +64,13 @@ class OppositeVehicleRunningRedLight(JunctionScenario):
                 f"{self.name}: layout missing: junction {self.junction.id} has no entry from the {self.direction}"
             )
         entry = entries[0]
-        straight = connection(self.lanes, entry, "straight")
+        # LB2.0 (opposite_vehicle_taking_priority.py ``_initialize_actors``): the sink follows
+        # ``generate_target_waypoint(source, 0)``, the straightest branch whatever its angle
+        straight = straightest_connection(self.lanes, entry)
         if straight is None:
             raise ScenarioSetupError(
-                f"{self.name}: layout missing: the {self.direction} entry of junction {self.junction.id} does not "
-                "continue straight"
+                f"{self.name}: layout missing: the {self.direction} entry of junction {self.junction.id} has no "
+                "connection through it"
             )
         try:
             self.path = junction_flow_path(straight, self.source_distance, self.sink_distance, back_step=1.0)

@@ -305,6 +305,17 @@ def connection(lanes: Iterable[JunctionLane], entry: Waypoint, turn: str) -> Jun
     return min(matches, key=lambda lane: abs(lane.angle))
 
 
+def straightest_connection(lanes: Iterable[JunctionLane], entry: Waypoint) -> JunctionLane | None:
+    """The connection leaving ``entry``'s lane with the smallest heading change, whatever its angle, or None.
+
+    LB2.0's ``generate_target_waypoint(source, 0)`` (scenario_helper.py ``choose_at_junction``) takes the branch
+    closest to straight ahead without a limit, so a lane that only turns gives its flattest turn. Placement's layout
+    checks keep :func:`connection` with ``"straight"`` (under :data:`STRAIGHT_ANGLE`).
+    """
+    matches = [lane for lane in lanes if same_lane(lane.entry, entry)]
+    return min(matches, key=lambda lane: abs(lane.angle)) if matches else None
+
+
 def flow_into_exit(
     lanes: Iterable[JunctionLane], entry: Waypoint, exit_: Waypoint | None, turn: str = "right"
 ) -> JunctionLane | None:

@@ -1,7 +1,8 @@
 """VehicleOpensDoorTwoWays (§2.2 #13): a car parked beside the ego's lane opens its door into it on a two-way road.
 
-The car (a model with doors that open) stands ``distance`` m ahead in the parking lane or shoulder on the ``direction``
-side, pushed toward the driving lane by (side-lane width − car half-width) / 4. When the ego's time to arrival at the
+The car (a model with doors that open) stands ``distance`` m ahead in the lane on the ``direction`` side (any lane, as
+LB2.0's; generated routes put it in a parking lane or shoulder), pushed toward the ego's lane by (side-lane width −
+car half-width) / 4. When the ego's time to arrival at the
 lane point beside the car drops below 3 s (or it is within 10 m) the door on the traffic side opens and the background
 behind the ego stops; 5 s later the wrong-direction check is switched off, the opposite background is switched off
 and a flow starts. The scenario ends 50 m past the car (or after 240 s); the background behind then resumes.
@@ -44,7 +45,7 @@ MIN_SIDE_LANE_WIDTH = 2.0
 
 
 def side_lane(wp: Waypoint, direction: str) -> Waypoint | None:
-    """The parking lane or wide shoulder next to ``wp`` on ``direction``, or None."""
+    """The parking lane or wide shoulder next to ``wp`` on ``direction``, or None (placement's layout check)."""
     other = neighbour(wp, direction)
     if other is None or not other.lane_type & SIDE_LANE_TYPES or other.lane_width < MIN_SIDE_LANE_WIDTH:
         return None
@@ -72,13 +73,17 @@ class VehicleOpensDoorTwoWays(OppositeFlowObstacle):
         self._stopped_back = False
 
     def place_site(self) -> None:
-        """The side lane the car stands in."""
-        side = side_lane(self.obstacle_waypoint, self.direction)
+        """The lane the car stands in: whatever lies to the ``direction`` side of the car's lane point.
+
+        LB2.0 (vehicle_opens_door.py ``_initialize_actors``) takes ``front_wp.get_right_lane()`` /
+        ``get_left_lane()`` of any type and width and refuses only where there is none; generated routes still put
+        the car in a parking lane (or a 2 m shoulder) through their layout check (:func:`side_lane`).
+        """
+        side = neighbour(self.obstacle_waypoint, self.direction)
         if side is None:
             wp = self.obstacle_waypoint
             raise ScenarioSetupError(
-                f"{self.name}: layout 'parking_lane' missing: no parking lane or shoulder at least "
-                f"{MIN_SIDE_LANE_WIDTH} m wide {self.direction} of road {wp.road_id} lane {wp.lane_id} at the car"
+                f"{self.name}: no lane {self.direction} of road {wp.road_id} lane {wp.lane_id} at the car"
             )
         self.side_waypoint = side
 

@@ -92,7 +92,9 @@ def opposite_lane_open(hint: ScenarioHint) -> bool:
 
     Not PDM-Lite: LB2.0 switches the wrong-direction test off only 5 s after the ego came within 50 m of the
     obstacle, and an ego that keeps its speed reaches the shift in ~4.5 s; crossing the centre line before that
-    is an outside-route-lanes infraction (route 151250001 on Town101, seed 151). The ego waits at the shift start.
+    is an outside-route-lanes infraction (route 151250003 on Town100, seed 151), and committing that fast the
+    steering cut the short shift into the parked car (151250001 and 151250005 on Town101). The ego waits at the
+    shift start.
     """
     return bool(int(hint.extra.get(OPPOSITE_LANE_OPEN, 1)))
 

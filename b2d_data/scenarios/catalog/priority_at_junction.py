@@ -16,11 +16,11 @@ same file as ``scenario_runner/srunner/scenarios/green_traffic_light.py``; line 
 - ``_create_test_criteria`` (:88-93): none, not even a ScenarioTimeoutTest.
 
 Ours: the junction is the route's first after the trigger, however far (:class:`JunctionScenario`; the reference
-walks the lane, ours the route, the same junction unless the route leaves the lane's road first; generated-route
-placement keeps it within 100 m); the ego's light is the one whose stop
-line is on the route's lane before the junction (:func:`~b2d_data.scenarios.catalog.junctions.lights_of_lane`). The
-freezing is a one-phase :class:`~b2d_data.scenarios.catalog.junctions.LightSchedule` released when the ego has left
-the junction, which restores the states the lights had at the trigger.
+walks the lane, ours the route, the same junction unless the route leaves the lane's way first; generated-route
+placement keeps it within 100 m); the ego's light is the one whose stop line is on the route's lane before the
+junction (:func:`~b2d_data.scenarios.catalog.junctions.lights_of_lane`). The freezing is a one-phase
+:class:`~b2d_data.scenarios.catalog.junctions.LightSchedule` released when the ego has left the junction, which
+restores the states the lights had at the trigger.
 
 Placement (generated towns): a signalised junction the route drives through, any turn (:data:`LAYOUT_TURNS`). On a
 route file, a junction without lights in the OpenDRIVE file gets none generated for this type (LB2.0 cannot find the

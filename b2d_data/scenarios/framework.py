@@ -214,6 +214,9 @@ class Scenario:
     xml_type: ClassVar[str] = ""
     scenario_timeout: ClassVar[float | None] = SCENARIO_TIMEOUT
     timeout_test: ClassVar[bool] = True
+    #: Generated-route placement keeps the route's first junction within ``catalog.junctions.JUNCTION_SEARCH`` m of
+    #: the trigger (a placement rule; the build takes the junction wherever it is, as LB2.0).
+    junction_layout: ClassVar[bool] = False
 
     def __init__(self, ctx: ScenarioContext) -> None:
         self.ctx = ctx

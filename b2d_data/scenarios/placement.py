@@ -26,6 +26,7 @@ from b2d_data.format.scenario_types import LB2_ONLY_TYPES, NO_SCENARIO, SCENARIO
 from b2d_data.format.transform import Location, Rotation, Transform
 from b2d_data.format.weather import WEATHER_IDS, preset
 from b2d_data.maps import Map, Waypoint
+from b2d_data.scenarios.catalog.junctions import JUNCTION_SEARCH, junction_entry
 from b2d_data.scenarios.catalog.layout import (
     CHECK_STEP,
     KEYPOINT_SPACING,
@@ -46,6 +47,7 @@ from b2d_data.scenarios.framework import ScenarioContext, ScenarioError, scenari
 from b2d_data.scenarios.param_ranges import BENCH2DRIVE220, DEFAULT_PARAMS, Choice, ParamSet, param_set
 from b2d_data.scenarios.route import DenseRoute
 from b2d_data.scenarios.route_xml import Route, ScenarioConfig
+from b2d_data.scenarios.triggers import trigger_route_index
 
 log = logging.getLogger(__name__)
 
@@ -446,6 +448,16 @@ def _deviation(dense: DenseRoute, path: Sequence[Waypoint]) -> float:
     return float(d.min(axis=1).max())
 
 
+def _junction_near(scenario_type: str, dense: DenseRoute, config: ScenarioConfig) -> bool:
+    """Whether a junction type's route enters a junction within :data:`JUNCTION_SEARCH` m of the trigger."""
+    # Placement's own rule: the build (LB2.0's) takes the first junction however far, but a generated route keeps
+    # its junction close to the trigger. A trigger off the route is left to the build, which reports it.
+    if not scenario_class(scenario_type).junction_layout:
+        return True
+    index = trigger_route_index(dense, config.trigger_point)
+    return index is None or junction_entry(dense, index, JUNCTION_SEARCH) is not None
+
+
 def _route_for(
     town: Map,
     candidate: Candidate,
@@ -501,6 +513,9 @@ def _route_for(
     weather = preset(weather_id)
     if candidate.scenario_type == NO_SCENARIO:
         return Route(id=rid, town=town.name, waypoints=keypoints, weathers=((0.0, weather), (100.0, weather)))
+    if not _junction_near(candidate.scenario_type, dense, config):
+        log.debug("%s: the route enters no junction within %.0f m of the trigger", rid, JUNCTION_SEARCH)
+        return None
     try:
         scenario_class(candidate.scenario_type)(
             ScenarioContext(

@@ -3,7 +3,8 @@ scenario_runner's ``leaderboard-2.0`` branch (Bench2Drive ``da12001``) sets them
 
 Built without a simulator (the constructors need only the map and the route): on the shipped Town07 with the
 keypoints of Bench2Drive v0.0.4's validation route 24948, and on a small generated town whose junction has an entry
-without a straight branch (the junction flows' entry rule, row 20 of docs/scenario-deviations.md).
+without a straight branch (the junction flows' entry rule, row 20 of docs/scenario-deviations.md), also triggered
+~150 m before that junction (LB2.0's junction search has no distance limit).
 """
 
 from __future__ import annotations
@@ -79,8 +80,9 @@ def skewed_junction(tmp_path_factory):
     return load_opendrive(path)
 
 
-def _right_turn_onto_the_skewed_arm(town, scenario_type: str, **params: str):
-    """``scenario_type`` on a route north from the south arm, right (45°) onto the north-east arm of junction 0."""
+def _right_turn_onto_the_skewed_arm(town, scenario_type: str, trigger_y: float = 60.0, **params: str):
+    """``scenario_type`` on a route north from the south arm, right (45°) onto the north-east arm of junction 0,
+    triggered at ``trigger_y`` on the south arm."""
     from b2d_data.scenarios.catalog.road_geometry import junction_lanes, move_along
     from b2d_data.scenarios.framework import scenario_class
 
@@ -89,8 +91,9 @@ def _right_turn_onto_the_skewed_arm(town, scenario_type: str, **params: str):
                 if (lane.entry.road_id, lane.entry.lane_id) == (ego_entry.road_id, ego_entry.lane_id)
                 and lane.turn == "right")  # fmt: skip
     end = move_along(turn.exit, 60.0)
-    dense = DenseRoute.from_keypoints(town, [Location(1.745, 150.0, 0.0), end.transform.location])
-    trigger = Transform(Location(1.745, 60.0, 0.0), Rotation(yaw=-90.0))
+    start_y = max(150.0, trigger_y + 10.0)
+    dense = DenseRoute.from_keypoints(town, [Location(1.745, start_y, 0.0), end.transform.location])
+    trigger = Transform(Location(1.745, trigger_y, 0.0), Rotation(yaw=-90.0))
     config = ScenarioConfig(f"{scenario_type}_1", scenario_type, trigger,
                             {tag: {"value": value} for tag, value in params.items()})  # fmt: skip
     ctx = ScenarioContext(sim=None, map=town, route=dense, config=config,  # type: ignore[arg-type]
@@ -120,3 +123,39 @@ def test_a_flow_entry_takes_its_straightest_branch_whatever_its_angle(skewed_jun
     assert (path[0].road_id, path[0].lane_id) == (west.road_id, west.lane_id)
     north_east = skewed_junction.get_waypoint(Location(60.0, -60.0, 0.0))
     assert _exit_of(path)[0] == north_east.road_id
+
+
+# ------------------------------------------------------------------------------------------------ row 20: any distance
+
+
+@pytest.mark.parametrize("scenario_type", ("SignalizedJunctionRightTurn", "NonSignalizedJunctionRightTurn",
+                                           "PriorityAtJunction"))  # fmt: skip
+def test_a_junction_far_ahead_of_the_trigger_sets_up(skewed_junction, scenario_type):
+    # signalized_junction_right_turn.py JunctionRightTurn._initialize_actors and green_traffic_light.py
+    # PriorityAtJunction._initialize_actors: the junction is found walking next(1.0)[0] from the trigger waypoint
+    # until is_junction, with no distance limit (only a lane without next raises). Here the trigger lies ~150 m
+    # before junction 0. (We refused: "the route enters no junction within 100 m of the trigger point".)
+    from b2d_data.scenarios.catalog.junctions import JUNCTION_SEARCH, junction_entry
+
+    scenario = _right_turn_onto_the_skewed_arm(skewed_junction, scenario_type, trigger_y=170.0)
+    assert scenario.junction.id == 0
+    assert scenario.ego_turn == "right"
+    dense = scenario.ctx.route
+    ahead = dense.cumulative_length[scenario.entry_index] - dense.cumulative_length[scenario.trigger_index]
+    assert ahead > 140.0
+    # generated-route placement keeps its own 100 m rule
+    assert junction_entry(dense, scenario.trigger_index, JUNCTION_SEARCH) is None
+
+
+def test_t_junction_sets_up_without_a_junction_ahead(skewed_junction):
+    # Bench2Drive's t_junction.py T_Junction._initialize_actors does nothing (its behaviour is DriveDistance(200) and
+    # a ScenarioTimeout), so any trigger sets up. Here the route runs 100 m along the south arm and ends before
+    # junction 0. (We refused: "the route enters no junction within 100 m of the trigger point".)
+    from b2d_data.scenarios.framework import scenario_class
+
+    dense = DenseRoute.from_keypoints(skewed_junction, [Location(1.745, 170.0, 0.0), Location(1.745, 70.0, 0.0)])
+    assert not any(wp.is_junction for wp in dense.waypoints)
+    config = ScenarioConfig("T_Junction_1", "T_Junction", Transform(Location(1.745, 160.0, 0.0), Rotation(yaw=-90.0)))
+    ctx = ScenarioContext(sim=None, map=skewed_junction, route=dense, config=config,  # type: ignore[arg-type]
+                          rng=np.random.default_rng(0), ego_id=1)  # fmt: skip
+    assert scenario_class("T_Junction")(ctx).trigger_index >= 0

@@ -22,15 +22,18 @@ from b2d_data.sim.api import Simulator, Snapshot, TrafficLightInfo, TrafficLight
 
 log = logging.getLogger(__name__)
 
-#: How far after the trigger point (along the route) a junction scenario looks for its junction (m).
+#: How far after the trigger point (along the route) generated-route placement accepts a junction scenario's
+#: junction (m). A placement rule only: at build the junction may be any distance ahead, as in LB2.0.
 JUNCTION_SEARCH = 100.0
 
 
-def junction_entry(route: DenseRoute, trigger_index: int) -> int | None:
-    """Index of the first route point inside a junction within :data:`JUNCTION_SEARCH` m after the trigger."""
+def junction_entry(route: DenseRoute, trigger_index: int, max_distance: float | None = None) -> int | None:
+    """Index of the first route point inside a junction after the trigger (within ``max_distance`` m if given)."""
+    # LB2.0 (e.g. signalized_junction_left_turn.py / green_traffic_light.py ``_initialize_actors``) walks 1 m steps
+    # from the trigger until a junction waypoint, with no distance limit; its walk ends only where the lane does.
     s = route.cumulative_length
     for j in range(trigger_index, len(route.waypoints)):
-        if s[j] - s[trigger_index] > JUNCTION_SEARCH:
+        if max_distance is not None and s[j] - s[trigger_index] > max_distance:
             return None
         if route.waypoints[j].is_junction:
             return j
@@ -38,12 +41,13 @@ def junction_entry(route: DenseRoute, trigger_index: int) -> int | None:
 
 
 class JunctionScenario(Scenario):
-    """A scenario at the first junction the route enters after its trigger point.
+    """A scenario at the first junction the route enters after its trigger point, however far (as LB2.0).
 
     Sets ``junction``, ``ego_entry`` (route waypoint just before the junction), ``ego_exit`` (just after it, None if
     the route ends inside), ``ego_turn`` ('left'/'right'/'straight'/'uturn') and ``lanes`` (every connection).
     """
 
+    junction_layout: ClassVar[bool] = True
     required_turn: ClassVar[tuple[str, ...]] = ()
     #: The scenario needs traffic lights at its junction (``b2d_data.scenarios.junction_signals`` adds CARLA-style
     #: ones where the OpenDRIVE file has none).
@@ -54,9 +58,9 @@ class JunctionScenario(Scenario):
         route = ctx.route
         entry = junction_entry(route, self.trigger_index)
         if entry is None:
+            # LB2.0's lane walk raises where the lane ends before a junction; ours ends where the route does
             raise ScenarioSetupError(
-                f"{self.name}: layout missing: the route enters no junction within {JUNCTION_SEARCH:.0f} m of the "
-                "trigger point"
+                f"{self.name}: layout missing: the route enters no junction after the trigger point"
             )
         inside = route.waypoints[entry]
         self.junction: Junction = ctx.map.junctions[inside.junction_id]

@@ -15,11 +15,12 @@ same file as ``scenario_runner/srunner/scenarios/green_traffic_light.py``; line 
   HandleJunctionScenario, no source switch), no ScenarioTimeout.
 - ``_create_test_criteria`` (:88-93): none, not even a ScenarioTimeoutTest.
 
-Ours: the junction is the route's first within 100 m of the trigger (:class:`JunctionScenario`; the reference's lane
-walk has no limit, and on a generated route the two are the same junction); the ego's light is the one whose stop
-line is on the route's lane before the junction (:func:`~b2d_data.scenarios.catalog.junctions.lights_of_lane`). The
-freezing is a one-phase :class:`~b2d_data.scenarios.catalog.junctions.LightSchedule` released when the ego has left
-the junction, which restores the states the lights had at the trigger.
+Ours: the junction is the route's first after the trigger, however far (:class:`JunctionScenario`; the reference
+walks the lane, ours the route, the same junction unless the route leaves the lane's way first; generated-route
+placement keeps it within 100 m); the ego's light is the one whose stop line is on the route's lane before the
+junction (:func:`~b2d_data.scenarios.catalog.junctions.lights_of_lane`). The freezing is a one-phase
+:class:`~b2d_data.scenarios.catalog.junctions.LightSchedule` released when the ego has left the junction, which
+restores the states the lights had at the trigger.
 
 Placement (generated towns): a signalised junction the route drives through, any turn (:data:`LAYOUT_TURNS`). On a
 route file, a junction without lights in the OpenDRIVE file gets none generated for this type (LB2.0 cannot find the

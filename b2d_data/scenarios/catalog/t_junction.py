@@ -2,15 +2,18 @@
 
 No actors and no parameters: the scenario ends when the ego has driven 200 m after the trigger or after the
 240 s ScenarioTimeout (its ScenarioTimeoutTest then records an infraction). Bench2Drive's routes are shorter
-than 200 m, so the scenario normally lasts until the route ends.
+than 200 m, so the scenario normally lasts until the route ends. Bench2Drive's ``t_junction.py``
+``_initialize_actors`` does nothing, so any trigger on the route sets up, junction ahead or not; only placement
+puts it before a T-junction (within ``JUNCTION_SEARCH`` m, :attr:`TJunction.junction_layout`).
 """
 
 from __future__ import annotations
 
-from b2d_data.scenarios.catalog.junctions import JunctionScenario
+from typing import ClassVar
+
 from b2d_data.scenarios.catalog.layout import Layout, register_layouts
 from b2d_data.scenarios.catalog.road_geometry import JunctionLane
-from b2d_data.scenarios.framework import ScenarioContext, ScenarioStatus, register
+from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DriveDistance
 from b2d_data.sim.api import Snapshot
 
@@ -21,10 +24,11 @@ def junction_arms(lanes: list[JunctionLane]) -> int:
 
 
 @register
-class TJunction(JunctionScenario):
-    """A plain drive through a T-junction."""
+class TJunction(Scenario):
+    """A plain drive through a T-junction (at build: any drive, as the reference)."""
 
     xml_type = "T_Junction"
+    junction_layout: ClassVar[bool] = True
     end_distance = 200.0
 
     def __init__(self, ctx: ScenarioContext) -> None:

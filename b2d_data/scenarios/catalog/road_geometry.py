@@ -297,9 +297,9 @@ def entries_from(lanes: Iterable[JunctionLane], ego_entry: Waypoint, direction: 
     return out
 
 
-def connection(lanes: Iterable[JunctionLane], entry: Waypoint, turn: str) -> JunctionLane | None:
-    """The connection leaving ``entry``'s lane with the given turn (the straightest one for 'straight')."""
-    matches = [lane for lane in lanes if same_lane(lane.entry, entry) and lane.turn == turn]
+def connection(lanes: Iterable[JunctionLane], entry: Waypoint, turn: str | None) -> JunctionLane | None:
+    """The straightest connection leaving ``entry``'s lane with the given turn (None: any turn)."""
+    matches = [lane for lane in lanes if same_lane(lane.entry, entry) and turn in (None, lane.turn)]
     if not matches:
         return None
     return min(matches, key=lambda lane: abs(lane.angle))
@@ -312,8 +312,7 @@ def straightest_connection(lanes: Iterable[JunctionLane], entry: Waypoint) -> Ju
     closest to straight ahead without a limit, so a lane that only turns gives its flattest turn. Placement's layout
     checks keep :func:`connection` with ``"straight"`` (under :data:`STRAIGHT_ANGLE`).
     """
-    matches = [lane for lane in lanes if same_lane(lane.entry, entry)]
-    return min(matches, key=lambda lane: abs(lane.angle)) if matches else None
+    return connection(lanes, entry, None)
 
 
 def flow_into_exit(

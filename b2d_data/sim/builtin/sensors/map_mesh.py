@@ -400,6 +400,10 @@ def _building(centre: np.ndarray, along: np.ndarray, across: np.ndarray, half_a:
     """A block: walls with procedural windows (facade material) and a darker flat roof."""
     tris = box_triangles((0.0, 0.0, height / 2), (half_a, half_c, height / 2), skip_bottom=True)
     rot = np.array([[along[0], across[0], 0.0], [along[1], across[1], 0.0], [0.0, 0.0, 1.0]])
+    if np.linalg.det(rot) < 0.0:
+        # A mirrored frame would turn the box inside out: every block keeps the box's winding, so that the renderer
+        # can skip the walls that face away from a camera (FACADE_CULL).
+        tris = tris[:, [0, 2, 1]]
     world = tris @ rot.T + np.array([centre[0], centre[1], z0])
     walls = TriangleMesh.from_triangles(world[:8], color, SemanticTag.BUILDING, 0, Material.FACADE)
     roof = TriangleMesh.from_triangles(world[8:10], ROOF, SemanticTag.BUILDING, 0, Material.MATTE)

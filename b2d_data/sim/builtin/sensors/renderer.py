@@ -290,6 +290,12 @@ DRAW_ORDER: tuple[int, ...] = (
 )
 
 
+#: The GL face (by winding on screen) of a facade wall that faces away from a camera, and from the sun in the
+#: shadow map: walls wound as ``scene_mesh.box_triangles`` winds them, which the cameras' projection mirrors and the
+#: sun's does not.
+CAMERA_FACADE_CULL = "front"
+SUN_FACADE_CULL = "front"
+
 _NO_RUNS = np.zeros((0, 2), np.int64)
 _UNSET = object()
 
@@ -548,7 +554,7 @@ class Renderer:
     def __init__(
         self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False,
         jpeg_planes: JpegPlanes = "off", packed: bool | None = None, pixel_buffer: bool | None = None,
-        shadows: bool = True, shadow_size: int | None = None,
+        shadows: bool = True, shadow_size: int | None = None, cull_facades: bool = True,
     ) -> None:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
@@ -603,6 +609,9 @@ class Renderer:
         # The sun's shadow map, drawn once per frame (the first render after the scene, actors or sun changed) and
         # read by every camera of it. llvmpipe draws a quarter of the texels: its shadow pass costs CPU.
         self.shadows = shadows
+        # Facades are closed blocks (Material.FACADE): the walls facing away from a view lie behind those facing it,
+        # so skipping them changes no pixel and spares a third of a street view's fragments.
+        self.cull_facades = cull_facades
         self.shadow_size = shadow_size or (2048 if self.hardware else 1024)
         self._shadow_maps: dict[tuple[int, bool], tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
         self._shadow_map: moderngl.Texture | None = None
@@ -821,17 +830,27 @@ class Renderer:
             if total:
                 self._vao(("shadow",), "dynamic").render(moderngl.TRIANGLES, vertices=total, first=0)
             runs = self._static_culling.runs(sun.viewproj, np.asarray(centre, np.float64))
-            every = np.concatenate([r for r in runs.values() if len(r)]) if runs else _NO_RUNS
-            if len(every):
-                vao = self._vao(("shadow",), "static")
-                if self.multi_draw:
-                    buffer, _ = self._indirect_commands({0: every}, self.SHADOW_SLOT)
-                    vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(every), first=0)
+            # The map keeps only the nearest depth, whatever the order: facades go last, without the walls facing
+            # away from the sun (behind those facing it).
+            facades = runs.get(Material.FACADE, _NO_RUNS) if self.cull_facades else _NO_RUNS
+            rest = [r for m, r in runs.items() if len(r) and not (len(facades) and m == Material.FACADE)]
+            groups = {0: np.concatenate(rest) if rest else _NO_RUNS, 1: facades}
+            vao = self._vao(("shadow",), "static")
+            buffer, offsets = self._indirect_commands(groups, self.SHADOW_SLOT) if self.multi_draw else (None, {})
+            for group, group_runs in groups.items():
+                if not len(group_runs):
+                    continue
+                if group == 1:
+                    self.ctx.enable(moderngl.CULL_FACE)
+                    self.ctx.cull_face = SUN_FACADE_CULL
+                if buffer is not None:
+                    vao.render_indirect(buffer, moderngl.TRIANGLES, count=len(group_runs), first=offsets[group])
                 else:
-                    for first, count in every.tolist():
+                    for first, count in group_runs.tolist():
                         vao.render(moderngl.TRIANGLES, vertices=count, first=first)
         finally:
             self.ctx.polygon_offset = (0.0, 0.0)
+            self.ctx.disable(moderngl.CULL_FACE)
 
     def _indirect_commands(self, runs: dict[int, np.ndarray], slot: int) -> tuple[moderngl.Buffer, dict[int, int]]:
         """Upload the draw commands of every material's runs for view ``slot``; returns the buffer and offsets.
@@ -967,6 +986,11 @@ class Renderer:
                     continue
                 prog = self._program(key)
                 self._set_uniforms(prog, camera_uniforms)
+                if material == Material.FACADE and self.cull_facades:
+                    self.ctx.enable(moderngl.CULL_FACE)
+                    self.ctx.cull_face = CAMERA_FACADE_CULL
+                else:
+                    self.ctx.disable(moderngl.CULL_FACE)
                 if dyn is not None and not distant:
                     vao = self._vao(key, "dynamic")
                     vao.render(moderngl.TRIANGLES, vertices=int(dyn.count.sum()), first=int(dyn.first[0]))
@@ -981,6 +1005,7 @@ class Renderer:
                     else:
                         for first, count in runs[part].tolist():
                             vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+        self.ctx.disable(moderngl.CULL_FACE)
         self.ctx.depth_func = "<="
         sky_key = ("sky", light.cloudiness > 0.01, falloff, airlight)
         sky = self._program(sky_key)

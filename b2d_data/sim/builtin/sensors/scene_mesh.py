@@ -20,7 +20,7 @@ class Material(IntEnum):
 
     MATTE = 0
     ROAD = 1  # darkens and reflects when wet, carries puddles
-    FACADE = 2  # procedural windows, some lit at night
+    FACADE = 2  # procedural windows, some lit at night; closed blocks wound as box_triangles (the renderer culls)
     GLASS = 3  # dark, reflects the sky
     EMISSIVE = 4  # glows at night (lamps, head/tail lights)
     FOLIAGE = 5  # per-fragment colour jitter

@@ -402,7 +402,7 @@ def _building(centre: np.ndarray, along: np.ndarray, across: np.ndarray, half_a:
     rot = np.array([[along[0], across[0], 0.0], [along[1], across[1], 0.0], [0.0, 0.0, 1.0]])
     if np.linalg.det(rot) < 0.0:
         # A mirrored frame would turn the box inside out: every block keeps the box's winding, so that the renderer
-        # can skip the walls that face away from a camera (FACADE_CULL).
+        # can skip the walls that face away from a camera (the renderer culls).
         tris = tris[:, [0, 2, 1]]
     world = tris @ rot.T + np.array([centre[0], centre[1], z0])
     walls = TriangleMesh.from_triangles(world[:8], color, SemanticTag.BUILDING, 0, Material.FACADE)

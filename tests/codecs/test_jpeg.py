@@ -54,14 +54,30 @@ def test_rgb_view_of_rgba_gives_the_same_file() -> None:
     # one pass, and the file must be byte for byte the one the contiguous RGB gives.
     rgba = np.dstack([smooth_rgb(), np.full((36, 64), 255, np.uint8)])
     view = rgba[..., :3]
-    assert rgba_parent(view) is rgba
+    parent = rgba_parent(view)
+    assert parent is not None and parent.shape == (36, 64, 4) and parent.ctypes.data == rgba.ctypes.data
     assert encode_jpeg_opencv(view) == encode_jpeg_opencv(np.ascontiguousarray(view))
     assert encode_jpeg(view) == encode_jpeg(np.ascontiguousarray(view))
-    # Views that are not the whole of a contiguous RGBA take the plain path (and still encode their own pixels).
-    for other in (smooth_rgb(), rgba[1:, :, :3], rgba[:, :, 1:], rgba[..., :3].copy()):
+    # Rows of it are RGBA pixels too; views whose alpha would lie outside the memory, or that are no view, are not.
+    np.testing.assert_array_equal(rgba_parent(rgba[1:, :, :3]), rgba[1:])
+    for other in (smooth_rgb(), rgba[:, :, 1:], rgba[..., :3].copy(), rgba[:, 1:, :3]):
         assert rgba_parent(other) is None
     cropped = rgba[1:, :, :3]
     assert encode_jpeg_opencv(cropped) == encode_jpeg_opencv(np.ascontiguousarray(cropped))
+
+
+def test_cameras_sharing_one_block_of_read_back_memory_keep_their_rgba() -> None:
+    # A frame's read-backs are views of one block (renderer._Readback): the second camera's RGBA starts 36·64·4 =
+    # 9216 bytes in, and its RGB view's parent must be exactly those bytes, not the block.
+    first, second = smooth_rgb(), smooth_rgb()[::-1].copy()
+    block = np.zeros(2 * 36 * 64 * 4, np.uint8)
+    views = [block[k * 9216 : (k + 1) * 9216].reshape(36, 64, 4) for k in range(2)]
+    for target, rgb in zip(views, (first, second)):
+        target[..., :3], target[..., 3] = rgb, 255
+    parent = rgba_parent(views[1][..., :3])
+    assert parent is not None and parent.ctypes.data == block.ctypes.data + 9216
+    np.testing.assert_array_equal(parent[..., :3], second)
+    assert encode_jpeg_opencv(views[1][..., :3]) == encode_jpeg_opencv(second)
 
 
 def test_quality_is_20() -> None:

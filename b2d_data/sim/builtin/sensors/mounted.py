@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-from numpy.lib.stride_tricks import as_strided
 
+from b2d_data.codecs._rgba import rgba_parent
 from b2d_data.format.rig import LidarSpec, Mount, RadarSpec
 from b2d_data.format.transform import Transform
 from b2d_data.sim.api import (
@@ -147,22 +147,10 @@ def gnss_noise_of(mount: SensorMount) -> GnssNoise:
 def bgra_in_place(rgb: np.ndarray) -> np.ndarray:
     """The renderer's RGB image as CARLA's BGRA, swapped in one pass in the RGBA read-back it is a view of.
 
-    The renderer hands RGB over as the first three channels of the RGBA pixels it read back (alpha 255). Read
-    through the pixel-pack buffer, a batch's cameras share one block of memory, so the view's ``base`` is that block;
-    the camera's RGBA is then rebuilt from the view's own strides once its extent is checked to lie in the block.
+    The renderer hands RGB over as the first three channels of the RGBA pixels it read back (alpha 255).
     """
-    h, w = rgb.shape[:2]
-    base = rgb.base
-    start = rgb.__array_interface__["data"][0]
-    if (
-        isinstance(base, np.ndarray)
-        and base.flags.c_contiguous
-        and rgb.dtype == np.uint8
-        and rgb.strides == (4 * w, 4, 1)
-        and base.ctypes.data <= start
-        and start + 4 * h * w <= base.ctypes.data + base.nbytes
-    ):
-        rgba = as_strided(rgb, (h, w, 4), rgb.strides)
+    rgba = rgba_parent(rgb)
+    if rgba is not None:
         return cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGRA, dst=rgba)
     # Not a view of RGBA pixels (never from the renderer): convert into a new image.
     return cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGRA)

@@ -27,6 +27,7 @@ import numpy as np
 from b2d_data.format.label_pixels import label_views
 from b2d_data.format.record import CameraFrame
 from b2d_data.sim.builtin.sensors import shaders
+from b2d_data.sim.builtin.sensors.host_pool import HostPool
 from b2d_data.sim.builtin.sensors.lighting import FOG_BASE_HEIGHT, Lighting
 from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, grid_triangles
 from b2d_data.sim.builtin.sensors.vehicle_lights import MAX_LIGHTS, NO_BLOCKER, SpotLights, beams_in_view
@@ -481,10 +482,12 @@ class _Readback:
     #: moderngl's read types: normalised bytes (colour), integer bytes (the R8UI / RGBA8UI targets), float.
     ARRAY_TYPE = {"f1": np.uint8, "u1": np.uint8, "f4": np.float32}
 
-    def __init__(self, ctx: moderngl.Context, buffer: moderngl.Buffer | None, use_buffer: bool = True) -> None:
+    def __init__(self, ctx: moderngl.Context, buffer: moderngl.Buffer | None, use_buffer: bool = True,
+                 host: HostPool | None = None) -> None:  # fmt: skip
         self.ctx = ctx
         self.use_buffer = use_buffer
         self.buffer = buffer
+        self.host = host or HostPool(keep=0)
         self._reads: list[tuple[moderngl.Framebuffer, int, tuple[int, ...], str, int]] = []
         self._size = 0
 
@@ -503,10 +506,12 @@ class _Readback:
 
     def finish(self) -> list[np.ndarray]:
         """The arrays, in the order they were added."""
+        # One block of host memory for the frame: its arrays are views of it.
+        host = self.host.take(self._size)
         if not self.use_buffer:
             out = []
-            for fbo, attachment, shape, dtype, _ in self._reads:
-                array = np.empty(shape, self.ARRAY_TYPE[dtype])
+            for fbo, attachment, shape, dtype, offset in self._reads:
+                array = self._view(host, shape, dtype, offset)
                 self._read(fbo, attachment, shape, dtype, array)
                 out.append(array)
             return out
@@ -516,13 +521,13 @@ class _Readback:
             self.buffer = self.ctx.buffer(reserve=max(self._size, 1), dynamic=True)
         for fbo, attachment, shape, dtype, offset in self._reads:
             self._read(fbo, attachment, shape, dtype, self.buffer, offset)
-        host = np.empty(max(self._size, 1), np.uint8)  # this frame's own memory: its arrays are views of it
         self.buffer.read_into(host, size=self._size)
-        out = []
-        for _, _, shape, dtype, offset in self._reads:
-            array_type = np.dtype(self.ARRAY_TYPE[dtype])
-            out.append(host[offset : offset + int(np.prod(shape)) * array_type.itemsize].view(array_type).reshape(shape))
-        return out
+        return [self._view(host, shape, dtype, offset) for _, _, shape, dtype, offset in self._reads]
+
+    @classmethod
+    def _view(cls, host: np.ndarray, shape: tuple[int, ...], dtype: str, offset: int) -> np.ndarray:
+        array_type = np.dtype(cls.ARRAY_TYPE[dtype])
+        return host[offset : offset + int(np.prod(shape)) * array_type.itemsize].view(array_type).reshape(shape)
 
 
 _F = TypeVar("_F", bound=Callable)
@@ -586,6 +591,7 @@ class Renderer:
         # llvmpipe the buffer is one more copy in host memory.
         self.pixel_buffer = self.hardware if pixel_buffer is None else pixel_buffer
         self._pack_buffer: moderngl.Buffer | None = None
+        self._host = HostPool()
         self._unpack_programs: dict[bool, moderngl.ComputeShader] = {}
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
@@ -1040,7 +1046,7 @@ class Renderer:
                 self._unpack(targets)
             if targets.planes:
                 self._convert_planes(targets)
-        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer)
+        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer, self._host)
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
             if targets.planes:

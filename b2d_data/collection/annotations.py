@@ -81,25 +81,28 @@ def _color(actor: ActorState) -> str | None:
     return actor.attributes.get("color")
 
 
-#: Width (m) of the ego-x slabs of :func:`x_slabs`: a power of two, so that ``x / width`` is exact.
+#: Width (m) of the slabs of :func:`xy_slabs`: a power of two, so that ``x / width`` is exact.
 _SLAB_WIDTH = 4.0
 _SLAB_LIMIT = np.iinfo(np.int16).max
+#: Slack (m) around a box's reach when picking slabs: far more than any rounding of the tests it stands in for.
+_SLAB_SLACK = 1e-3
 
 
-def x_slabs(points_ego: np.ndarray) -> np.ndarray:
-    """Each point's slab along ego x (int16 ``floor(x / 4 m)``, clipped): a sweep's coarse index for num_points.
+def xy_slabs(points_ego: np.ndarray) -> np.ndarray:
+    """(2, N) int16: each point's slab along ego x and along ego y (``floor(v / 4 m)``, clipped).
 
-    A box then tests only the points of the slabs its reach spans (two int16 compares over the sweep instead of
-    float arithmetic); the slab of a point never decreases as its x grows, so no point within reach is missed.
+    A sweep's coarse index for num_points: a box then tests only the points of the slabs its reach spans (int16
+    compares over the sweep instead of float arithmetic). A slab never decreases as its coordinate grows, so no
+    point within reach is missed.
     """
+    xy = np.asarray(points_ego)[:, :2].T
     with np.errstate(invalid="ignore"):  # NaN coordinates land in some slab: the exact test still refuses them
-        scaled = np.floor(np.asarray(points_ego)[:, 0] * (1.0 / _SLAB_WIDTH))
-        return np.clip(scaled, -_SLAB_LIMIT - 1, _SLAB_LIMIT).astype(np.int16)
+        return np.clip(np.floor(xy * (1.0 / _SLAB_WIDTH)), -_SLAB_LIMIT - 1, _SLAB_LIMIT).astype(np.int16)
 
 
-def _slab_of(x: float) -> int:
-    """:func:`x_slabs`' slab of one (finite) ego x, by the same float64 arithmetic."""
-    return int(min(max(math.floor(x * (1.0 / _SLAB_WIDTH)), -_SLAB_LIMIT - 1), _SLAB_LIMIT))
+def _slab_of(v: float) -> int:
+    """:func:`xy_slabs`' slab of one (finite) coordinate, by the same float64 arithmetic."""
+    return int(min(max(math.floor(v * (1.0 / _SLAB_WIDTH)), -_SLAB_LIMIT - 1), _SLAB_LIMIT))
 
 
 def points_in_origin_box(
@@ -111,7 +114,7 @@ def points_in_origin_box(
     ``location`` is the actor origin in the world, mapped into the ego frame by ``world2ego``; the box turns by
     the yaw relative to the ego and has the half ``extent``. The annotation and ``b2d-verify --deep`` both count
     with this function, from the same numbers the annotation stores, so a recount from a file is exact.
-    ``slabs`` (:func:`x_slabs` of the same points) only makes the count faster where many boxes share a sweep.
+    ``slabs`` (:func:`xy_slabs` of the same points) only makes the count faster where many boxes share a sweep.
     """
     if len(points_ego) == 0:
         return 0
@@ -123,12 +126,16 @@ def points_in_origin_box(
     # Only points within the box's circumradius along ego x can be inside (the same test then runs on those):
     # one pass over the sweep per actor instead of a dozen.
     reach = math.hypot(ex, ey) * (1.0 + 1e-9) + 1e-9
-    x0 = float(rel[0])
-    if slabs is not None and math.isfinite(x0) and math.isfinite(reach):
-        # The slabs of [x0 - reach, x0 + reach] widened by 1 mm, far more than the rounding of |x - x0| <= reach:
-        # every point that test accepts is among these rows, and the test below runs on them unchanged.
-        lo, hi = _slab_of(x0 - reach - 1e-3), _slab_of(x0 + reach + 1e-3)
-        points_ego = points_ego[np.flatnonzero((slabs >= lo) & (slabs <= hi))]
+    x0, y0 = float(rel[0]), float(rel[1])
+    if slabs is not None and math.isfinite(x0) and math.isfinite(y0) and math.isfinite(reach):
+        # Along x: the slabs of [x0 - reach, x0 + reach] widened by 1 mm, far more than the rounding of
+        # |x - x0| <= reach, so every point that test accepts is among these rows (and it runs on them unchanged).
+        # Along y: a point inside the turned box is within its circumradius of the centre, so |y - y0| < reach
+        # too, up to roundings of ~1e-15 relative (c² + s² = 1 ± 2⁻⁵²); the same slack covers them.
+        x_lo, x_hi = _slab_of(x0 - reach - _SLAB_SLACK), _slab_of(x0 + reach + _SLAB_SLACK)
+        y_lo, y_hi = _slab_of(y0 - reach - _SLAB_SLACK), _slab_of(y0 + reach + _SLAB_SLACK)
+        sx, sy = slabs[0], slabs[1]
+        points_ego = points_ego[np.flatnonzero((sx >= x_lo) & (sx <= x_hi) & (sy >= y_lo) & (sy <= y_hi))]
     near = np.flatnonzero(np.abs(points_ego[:, 0] - rel[0]) <= reach)
     d = points_ego[near] - rel
     local_x = c * d[:, 0] + s * d[:, 1]
@@ -146,7 +153,7 @@ def count_points_in_box(
     The box is centred on the actor *origin* (not its bounding-box centre) in the ego frame, turned by the
     relative yaw, with the half extents — the released collector's rule, kept so counts are comparable. Pass the
     points as they are stored (:func:`b2d_data.codecs.laz.stored_points`), so the count is the file's.
-    ``world2ego`` (the ego's inverse matrix) and ``slabs`` (:func:`x_slabs`) may be passed once per frame.
+    ``world2ego`` (the ego's inverse matrix) and ``slabs`` (:func:`xy_slabs`) may be passed once per frame.
     """
     if points_ego is None:
         return -1
@@ -450,7 +457,7 @@ def bounding_boxes(
     # num_points of every box against one ego matrix and one slab index of the sweep.
     counted = [*vehicles, *statics, *walkers]
     if points_ego is not None and len(points_ego) and counted:
-        world2ego, slabs = ego.transform.inverse_matrix(), x_slabs(points_ego)
+        world2ego, slabs = ego.transform.inverse_matrix(), xy_slabs(points_ego)
         counts = iter([count_points_in_box(points_ego, ego, a, world2ego=world2ego, slabs=slabs) for a in counted])
     else:
         counts = iter([count_points_in_box(points_ego, ego, a) for a in counted])

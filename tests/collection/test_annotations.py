@@ -227,21 +227,32 @@ def test_batched_lanes_and_counts_are_the_box_by_box_values(town01, seed):
 
 
 def test_slab_index_never_drops_a_point_near_a_box():
-    """Points on slab borders and boxes whose reach ends on a border: the slab rows hold every point in reach."""
-    from b2d_data.collection.annotations import points_in_origin_box, x_slabs
+    """Boxes whose reach ends on slab borders, points on those borders and in box corners: counts unchanged."""
+    from b2d_data.collection.annotations import points_in_origin_box, xy_slabs
 
     rng = np.random.default_rng(11)
     edges = np.arange(-40.0, 41.0, 4.0)
-    pts = np.concatenate([
-        rng.uniform(-45, 45, (4000, 3)),
-        np.column_stack([np.repeat(edges, 20) + rng.choice([-1e-12, 0.0, 1e-12], len(edges) * 20),
-                         rng.uniform(-3, 3, len(edges) * 20), rng.uniform(-0.5, 0.5, len(edges) * 20)]),
-    ])  # fmt: skip
-    slabs = x_slabs(pts)
+    jitter = [-1e-12, 0.0, 1e-12]
+    border = np.column_stack([np.repeat(edges, 20) + rng.choice(jitter, len(edges) * 20),
+                              np.tile(edges, 20)[: len(edges) * 20] + rng.choice(jitter, len(edges) * 20),
+                              rng.uniform(-0.5, 0.5, len(edges) * 20)])  # fmt: skip
+    base = np.concatenate([rng.uniform(-45, 45, (4000, 3)) * [1, 1, 0.02], border])
+    total = 0
     for _ in range(300):
         ex, ey, ez = rng.uniform(0.2, 3.0, 3)
         reach = math.hypot(ex, ey)
         x0 = float(rng.choice(edges)) + float(rng.choice([-reach, reach, 0.0])) + float(rng.normal(0, 1e-9))
-        loc, yaw = [x0, float(rng.uniform(-3, 3)), 0.0], float(rng.uniform(-180, 180))
-        assert points_in_origin_box(pts, np.eye(4), loc, yaw, (ex, ey, ez), slabs) == points_in_origin_box(
-            pts, np.eye(4), loc, yaw, (ex, ey, ez))
+        y0 = float(rng.choice(edges)) + float(rng.choice([-reach, reach, 0.0])) + float(rng.normal(0, 1e-9))
+        yaw = float(rng.choice([0.0, 45.0, 90.0, -135.0, rng.uniform(-180, 180)]))
+        # Points filling the box and a hair beyond, corners included (where |y - y0| comes closest to the reach).
+        c, s_ = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+        local = rng.uniform(-1.0001, 1.0001, (300, 3)) * [ex, ey, ez]
+        local[:40, :2] = np.sign(local[:40, :2]) * [ex, ey] * (1 - 1e-12)  # on the corners' verticals
+        box = np.column_stack([x0 + c * local[:, 0] - s_ * local[:, 1], y0 + s_ * local[:, 0] + c * local[:, 1],
+                               local[:, 2]])  # fmt: skip
+        pts = np.concatenate([base, box])
+        loc = [x0, y0, 0.0]
+        want = points_in_origin_box(pts, np.eye(4), loc, yaw, (ex, ey, ez))
+        assert points_in_origin_box(pts, np.eye(4), loc, yaw, (ex, ey, ez), xy_slabs(pts)) == want
+        total += want
+    assert total > 300 * 100  # the boxes hold most of their points: the test exercises full boxes

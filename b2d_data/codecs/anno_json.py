@@ -169,8 +169,9 @@ def dumps_indent4(obj: Any) -> str:
     """Exactly ``json.dumps(obj, indent=4)`` (same text, same errors), several times faster on annotations."""
     try:
         return _render(obj, 0)
-    except (_Unsupported, IndexError, RecursionError):
+    except (_Unsupported, IndexError, RecursionError) as exc:
         # Unknown types, deeper than the line-break tables, or circular: json.dumps writes it or raises its error.
+        logger.debug("annotation text through json.dumps (%s)", type(exc).__name__)
         return json.dumps(obj, indent=4)
 
 

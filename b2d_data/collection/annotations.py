@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -473,13 +474,30 @@ def bounding_boxes(
     return boxes
 
 
+@lru_cache(maxsize=256)
+def _mount_rows(mount: Mount) -> tuple[tuple[float, ...], ...]:
+    """``_r(mount.matrix())``, frozen: a rig's mounts do not change, so each matrix is built once."""
+    return tuple(map(tuple, _r(mount.matrix())))
+
+
+@lru_cache(maxsize=256)
+def _intrinsic_rows(spec: CameraSpec, width: int, height: int) -> tuple[tuple[float, ...], ...]:
+    """``_r(spec.intrinsic(width, height))``, frozen (constant for a rig and an image size)."""
+    return tuple(map(tuple, _r(spec.intrinsic(width, height))))
+
+
+def _rows(frozen: tuple[tuple[float, ...], ...]) -> list[list[float]]:
+    """Fresh nested lists (each annotation owns its lists) of a cached matrix."""
+    return [list(row) for row in frozen]
+
+
 def _camera_entry(spec: CameraSpec, world: Transform, width: int, height: int) -> dict:
     return {
         "location": world.location.to_list(),
         "rotation": world.rotation.to_anno(),
-        "intrinsic": _r(spec.intrinsic(width, height)),
+        "intrinsic": _rows(_intrinsic_rows(spec, width, height)),
         "world2cam": _r(world.inverse_matrix()),
-        "cam2ego": _r(spec.mount.matrix()),
+        "cam2ego": _rows(_mount_rows(spec.mount)),
         "fov": float(spec.fov),
         "image_size_x": int(width),
         "image_size_y": int(height),
@@ -494,11 +512,14 @@ def sensor_calibrations(
     World poses come from the sensors' reported transforms when given, else from the ego pose and the mount.
     """
     poses = dict(sensor_transforms or {})
+    ego_matrix: list[np.ndarray] = []  # built once, on the first sensor without a reported pose
 
     def world_pose(sensor_id: str, mount: Mount) -> Transform:
         if sensor_id in poses:
             return poses[sensor_id]
-        return Transform.from_matrix(ego.transform.matrix() @ mount.matrix())
+        if not ego_matrix:
+            ego_matrix.append(ego.transform.matrix())
+        return Transform.from_matrix(ego_matrix[0] @ mount.matrix())
 
     out: dict[str, dict] = {}
     for spec in ALL_CAMERAS:
@@ -514,14 +535,14 @@ def sensor_calibrations(
             "location": pose.location.to_list(),
             "rotation": pose.rotation.to_anno(),
             "world2radar": _r(pose.inverse_matrix()),
-            "radar2ego": _r(radar.mount.matrix()),
+            "radar2ego": _rows(_mount_rows(radar.mount)),
         }
     pose = world_pose(LIDAR.sensor_id, LIDAR.mount)
     out[LIDAR.sensor_id] = {
         "location": pose.location.to_list(),
         "rotation": pose.rotation.to_anno(),
         "world2lidar": _r(pose.inverse_matrix()),
-        "lidar2ego": _r(LIDAR.mount.matrix()),
+        "lidar2ego": _rows(_mount_rows(LIDAR.mount)),
     }
     return out
 

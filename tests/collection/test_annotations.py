@@ -256,3 +256,27 @@ def test_slab_index_never_drops_a_point_near_a_box():
         assert points_in_origin_box(pts, np.eye(4), loc, yaw, (ex, ey, ez), xy_slabs(pts)) == want
         total += want
     assert total > 300 * 100  # the boxes hold most of their points: the test exercises full boxes
+
+
+def test_sensor_calibrations_cached_matrices_are_fresh_and_exact():
+    from b2d_data.collection.annotations import sensor_calibrations
+    from b2d_data.format.rig import ALL_CAMERAS, LIDAR, RADARS_V0
+
+    ego = make_actor(1, "vehicle.lincoln.mkz_2020", ActorKind.VEHICLE,
+                     Transform(Location(3.0, -7.5, 0.2), Rotation(yaw=31.0, pitch=1.5)), (2.4, 1.0, 0.75), (14,))  # fmt: skip
+    config = RigConfig(width=160, height=90)
+    first, second = sensor_calibrations(ego, config), sensor_calibrations(ego, config)
+    assert first == second
+    for spec in ALL_CAMERAS:
+        w, h = (config.top_down_width, config.top_down_height) if spec.sensor_id == "TOP_DOWN" else (160, 90)
+        entry = first[spec.sensor_id]
+        assert entry["cam2ego"] == spec.mount.matrix().tolist() and entry["intrinsic"] == spec.intrinsic(w, h).tolist()
+        pose = Transform.from_matrix(ego.transform.matrix() @ spec.mount.matrix())
+        assert entry["world2cam"] == pose.inverse_matrix().tolist()
+    for radar in RADARS_V0:
+        assert first[radar.sensor_id]["radar2ego"] == radar.mount.matrix().tolist()
+    assert first[LIDAR.sensor_id]["lidar2ego"] == LIDAR.mount.matrix().tolist()
+    # Each annotation owns its lists: changing one frame's matrix leaves the next frame's alone.
+    first["CAM_FRONT"]["cam2ego"][0][0] = 99.0
+    first["LIDAR_TOP"]["lidar2ego"][0].append(1.0)
+    assert sensor_calibrations(ego, config) == second

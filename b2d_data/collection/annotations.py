@@ -87,6 +87,8 @@ _SLAB_WIDTH = 4.0
 _SLAB_LIMIT = np.iinfo(np.int16).max
 #: Slack (m) around a box's reach when picking slabs: far more than any rounding of the tests it stands in for.
 _SLAB_SLACK = 1e-3
+#: Boxes from which indexing a sweep (~0.13 ms for 60k points) beats a pass over it per box (~0.03 ms more each).
+_SLAB_MIN_BOXES = 5
 
 
 def xy_slabs(points_ego: np.ndarray) -> np.ndarray:
@@ -457,7 +459,7 @@ def bounding_boxes(
 
     # num_points of every box against one ego matrix and one slab index of the sweep.
     counted = [*vehicles, *statics, *walkers]
-    if points_ego is not None and len(points_ego) and counted:
+    if points_ego is not None and len(points_ego) and len(counted) >= _SLAB_MIN_BOXES:
         world2ego, slabs = ego.transform.inverse_matrix(), xy_slabs(points_ego)
         counts = iter([count_points_in_box(points_ego, ego, a, world2ego=world2ego, slabs=slabs) for a in counted])
     else:

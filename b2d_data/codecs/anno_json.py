@@ -9,12 +9,19 @@ from __future__ import annotations
 import gzip
 import io
 import json
+import logging
 import os
 import zlib
+from itertools import chain
+from json.encoder import encode_basestring_ascii
+from operator import add
+from typing import Any
 
 from b2d_data.codecs._source import Source, read_source, write_bytes
 from b2d_data.format.anno_schema import check_anno
 from b2d_data.format.errors import B2DFormatError
+
+logger = logging.getLogger(__name__)
 
 _GZIP_MAGIC = b"\x1f\x8b"
 
@@ -40,7 +47,132 @@ def anno_text(anno: dict, *, strict: bool = False, frame: str = "annotation") ->
     """The JSON text Bench2Drive writes (4-space indent, default separators, bare NaN); ``strict`` checks key orders."""
     if strict:
         validate_anno(anno, frame=frame)
-    return json.dumps(anno, indent=4)
+    return dumps_indent4(anno)
+
+
+# ------------------------------------------------------------------------------------ json.dumps(indent=4), faster
+# With ``indent`` set, CPython's json falls back to its pure-Python encoder: a generator per container and a call
+# per item (~1.6 ms for one frame's ~1,400 numbers). The writer below renders the same text with fewer Python steps:
+# leaf lists of floats in one ``join``, matrices (lists of equal-length float lists) through one cached ``%``
+# template, dict keys as cached prefixes. It handles exactly the builtin types build_annotation emits (dict with str
+# keys, list, tuple, str, int, float, bool, None) by *exact* type and renders them by json's own rules; anything
+# else (numpy scalars, subclasses, non-str keys, nesting deeper than its tables) raises ``_Unsupported`` and the
+# whole document goes through ``json.dumps`` instead, so the text (or the error) is always json's.
+
+_INDENT = "    "
+#: Nesting depths with precomputed line breaks; deeper documents take json.dumps.
+_MAX_DEPTH = 64
+_NEWLINE = tuple("\n" + _INDENT * depth for depth in range(_MAX_DEPTH + 3))
+_ITEM_SEP = tuple("," + newline for newline in _NEWLINE)
+#: json writes the IEEE specials as these tokens (allow_nan=True); float.__repr__ spells them nan / inf / -inf.
+_FLOAT_SPECIALS = {"nan": "NaN", "inf": "Infinity", "-inf": "-Infinity"}
+_FLOAT_ONLY = {float}
+_LIST_ONLY = {list}
+_STR_ONLY = {str}
+_float_repr = float.__repr__
+_int_repr = int.__repr__
+#: Caches of rendered skeletons: few distinct (depth, shape) and (depth, key tuple) pairs occur in annotations, but
+#: arbitrary input must not grow them without bound.
+_CACHE_LIMIT = 4096
+_matrix_templates: dict[tuple[int, int, int], str] = {}
+_key_prefixes: dict[tuple[int, tuple[str, ...]], list[str]] = {}
+
+
+class _Unsupported(Exception):
+    """A value the fast writer does not render itself (json.dumps takes the whole document)."""
+
+
+def _float_text(value: float) -> str:
+    # json tests o != o and compares with ±inf; for an exact float the repr tells the same (every NaN is 'nan').
+    text = _float_repr(value)
+    return _FLOAT_SPECIALS.get(text, text)
+
+
+def _matrix_template(depth: int, rows: int, cols: int) -> str:
+    key = (depth, rows, cols)
+    template = _matrix_templates.get(key)
+    if template is None:
+        row = "[" + _NEWLINE[depth + 2] + _ITEM_SEP[depth + 2].join(["%s"] * cols) + _NEWLINE[depth + 1] + "]"
+        template = "[" + _NEWLINE[depth + 1] + _ITEM_SEP[depth + 1].join([row] * rows) + _NEWLINE[depth] + "]"
+        if len(_matrix_templates) < _CACHE_LIMIT:
+            _matrix_templates[key] = template
+    return template
+
+
+def _prefixes(depth: int, keys: tuple[Any, ...]) -> list[str]:
+    """``{``/``,`` + line break + encoded key + ``": "`` before each value of a dict with these keys."""
+    if set(map(type, keys)) != _STR_ONLY:
+        raise _Unsupported  # json turns int/float/bool/None keys into strings: left to it
+    cache_key = (depth, keys)
+    prefixes = _key_prefixes.get(cache_key)
+    if prefixes is None:
+        newline, sep = _NEWLINE[depth + 1], _ITEM_SEP[depth + 1]
+        encoded = [encode_basestring_ascii(key) + ": " for key in keys]
+        prefixes = ["{" + newline + encoded[0]] + [sep + key for key in encoded[1:]]
+        if len(_key_prefixes) < _CACHE_LIMIT:
+            _key_prefixes[cache_key] = prefixes
+    return prefixes
+
+
+def _render_list(value: list | tuple, depth: int) -> str:
+    if not value:
+        return "[]"
+    inner = depth + 1
+    first = type(value[0])
+    if first is float:
+        if set(map(type, value)) == _FLOAT_ONLY:
+            body = _ITEM_SEP[inner].join(map(_float_repr, value))
+            if "n" in body:  # nan / inf: a finite repr holds no 'n'
+                body = _ITEM_SEP[inner].join(map(_float_text, value))
+            return "[" + _NEWLINE[inner] + body + _NEWLINE[depth] + "]"
+    elif first is list and set(map(type, value)) == _LIST_ONLY:
+        lengths = set(map(len, value))
+        if len(lengths) == 1:
+            flat = tuple(chain.from_iterable(value))
+            if flat and set(map(type, flat)) == _FLOAT_ONLY:
+                template = _matrix_template(depth, len(value), len(flat) // len(value))
+                text = template % tuple(map(_float_repr, flat))
+                if "n" in text:  # the template itself is brackets, commas and white space
+                    text = template % tuple(map(_float_text, flat))
+                return text
+    return "[" + _NEWLINE[inner] + _ITEM_SEP[inner].join([_render(item, inner) for item in value]) + _NEWLINE[depth] + "]"
+
+
+def _render_dict(value: dict, depth: int) -> str:
+    if not value:
+        return "{}"
+    prefixes = _prefixes(depth, tuple(value))
+    inner = depth + 1
+    return "".join(map(add, prefixes, [_render(item, inner) for item in value.values()])) + _NEWLINE[depth] + "}"
+
+
+def _render(value: Any, depth: int) -> str:
+    kind = type(value)
+    if kind is list or kind is tuple:
+        return _render_list(value, depth)
+    if kind is float:
+        return _float_text(value)
+    if kind is str:
+        return encode_basestring_ascii(value)
+    if kind is dict:
+        return _render_dict(value, depth)
+    if kind is int:
+        return _int_repr(value)
+    if kind is bool:
+        return "true" if value else "false"
+    if value is None:
+        return "null"
+    raise _Unsupported
+
+
+def dumps_indent4(obj: Any) -> str:
+    """Exactly ``json.dumps(obj, indent=4)`` (same text, same errors), several times faster on annotations."""
+    try:
+        return _render(obj, 0)
+    except (_Unsupported, IndexError, RecursionError) as exc:
+        # Unknown types, deeper than the line-break tables, or circular: json.dumps writes it or raises its error.
+        logger.debug("annotation text through json.dumps (%s)", type(exc).__name__)
+        return json.dumps(obj, indent=4)
 
 
 def encode_anno(

@@ -163,6 +163,25 @@ class Map:
             return None
         return waypoint
 
+    def lane_keys(
+        self, locations: Sequence[PointLike], lane_type: LaneType = LaneType.DRIVING
+    ) -> list[tuple[int, int, int] | None]:
+        """``(road_id, lane_id, section_id)`` of :meth:`get_waypoint` at each location (``None`` where it is).
+
+        One KD-tree query for all of them, and no waypoint built: what a frame's annotation needs of each box.
+        """
+        if not len(locations):
+            return []
+        points = np.array([(loc.x, loc.y, loc.z) for loc in map(_as_location, locations)], dtype=np.float64)
+        out: list[tuple[int, int, int] | None] = []
+        for found in self._lane_index.nearest_many(points, int(lane_type)):
+            if found is None:
+                out.append(None)
+            else:
+                seg = self._segments[found[0]]
+                out.append((seg.road_id, seg.lane_id, seg.section_id))
+        return out
+
     def get_waypoint_xodr(self, road_id: int, lane_id: int, s: float) -> Waypoint | None:
         """Waypoint at OpenDRIVE (road, lane, s), or ``None`` when outside the road or the lane is absent."""
         if not self.data.has_road(road_id):

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import enum
 import gzip
 import json
 import math
+import random
 import zlib
 from pathlib import Path
 
@@ -118,3 +120,100 @@ def test_multi_member_gzip_still_reads() -> None:
     # gzip files may hold several members (e.g. appended); their texts are concatenated, as gzip.decompress does.
     data = gzip.compress(b'{"x": 1, ') + gzip.compress(b'"y": 2}') + b"\x00\x00"
     assert read_anno(data) == {"x": 1, "y": 2}
+
+
+# ------------------------------------------------------------------- the fast writer is json.dumps(indent=4)
+
+_FLOATS = [0.0, -0.0, 1.0, -1.5, 0.1, 1e-7, 1e-320, 5e-324, 1.7976931348623157e308, -2.5e22, 1e16, 123456789.125,
+           float("nan"), float("inf"), float("-inf"), -float("nan")]  # fmt: skip
+_STRINGS = ["", "ego_vehicle", 'quo"te', "back\\slash", "tab\tnew\nline\x00\x1f", "ünïcødé ✓ 🚗", "[1, 2]", "a,b:{c}",
+            "%s %d %%", "n", "\u2028\ud800"]  # fmt: skip
+
+
+def _random_value(rng: random.Random, depth: int) -> object:
+    roll = rng.random()
+    if depth > 5 or roll < 0.45:
+        scalar = rng.choice(["float", "float", "int", "bool", "none", "str"])
+        if scalar == "float":
+            return rng.choice(_FLOATS) if rng.random() < 0.3 else rng.uniform(-1e3, 1e3) * 10.0 ** rng.randint(-8, 8)
+        if scalar == "int":
+            return rng.choice([0, 1, -1, 7, 2**63, -(2**70), rng.randint(-10**6, 10**6)])
+        if scalar == "bool":
+            return rng.random() < 0.5
+        return None if scalar == "none" else rng.choice(_STRINGS)
+    if roll < 0.6:  # a float row or matrix, the writer's fast paths (with the odd NaN or int among them)
+        rows, cols = rng.randint(0, 4), rng.randint(0, 4)
+        matrix = [[rng.choice(_FLOATS) if rng.random() < 0.05 else rng.uniform(-500, 500) for _ in range(cols)]
+                  for _ in range(rows)]  # fmt: skip
+        if rows and cols and rng.random() < 0.1:
+            matrix[rng.randrange(rows)][rng.randrange(cols)] = rng.choice([1, True, None, "x"])
+        if rows and rng.random() < 0.1:
+            matrix[rng.randrange(rows)] = matrix[0][:-1] if cols else [1.0]  # ragged
+        return matrix if rng.random() < 0.5 else (matrix[0] if matrix else [])
+    if roll < 0.8:
+        items = [_random_value(rng, depth + 1) for _ in range(rng.randint(0, 5))]
+        return tuple(items) if rng.random() < 0.2 else items
+    return {rng.choice(_STRINGS) + str(i): _random_value(rng, depth + 1) for i in range(rng.randint(0, 6))}
+
+
+def test_fast_writer_matches_json_dumps_on_hand_built_values() -> None:
+    cases: list[object] = [
+        anno(), {}, [], (), [[]], [{}], {"a": []}, {"a": {}}, [[], {}, [[]]], 0.0, -0.0, "x", None, True, False, 3,
+        [1.0, 2.0, 3.0], [[1.0, 2.0], [3.0, 4.0]], [[1.0, 2.0], [3.0]], [[1.0], [2.0], [3.0]], [[1.0, 2]],
+        [1.0, 2], [1, 2.0], [True, 1.0], [1.0, True], [float("nan"), 1.0], [[float("inf"), -0.0], [float("-inf"), 1e300]],
+        [[[1.0, 2.0], [3.0, 4.0]]], ([1.0, 2.0], [3.0, 4.0]), [(1.0, 2.0), (3.0, 4.0)], ((1.0,),),
+        {"semantic_tags": [[14]], "bone": [[[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]]], "ids": [1, 2, 3]},
+        {s: s for s in _STRINGS}, {"k": [None, True, False, 0, -0.0, "", [], {}]},
+        {"n": float("nan"), "i": float("inf"), "m": float("-inf")}, [2**100, -(2**100)], {"deep": [[[[[[[]]]]]]]},
+    ]  # fmt: skip
+    for value in cases:
+        assert anno_json.dumps_indent4(value) == json.dumps(value, indent=4), value
+
+
+def test_fast_writer_matches_json_dumps_on_random_values() -> None:
+    rng = random.Random(1234)
+    for _ in range(3000):
+        value = _random_value(rng, 0)
+        assert anno_json.dumps_indent4(value) == json.dumps(value, indent=4), value
+
+
+def test_fast_writer_leaves_other_types_to_json() -> None:
+    np = pytest.importorskip("numpy")
+    # Types json takes its own way (subclasses, numpy float64, non-str keys) give json's text...
+    for value in ([np.float64(0.1), 0.2], {"a": np.float64("nan")}, {1: "a", 2.5: "b", None: "c", False: "d"},
+                  [IntFlag(3), 1.0], {"k": StrKind.A}, [[1.0, np.float64(2.0)]]):  # fmt: skip
+        assert anno_json.dumps_indent4(value) == json.dumps(value, indent=4)
+    # ...types json refuses raise json's error, and a circular document json's ValueError.
+    for bad in ([np.float32(1.0)], {"a": np.int64(1)}, {"a": {1, 2}}, [np.array([1.0])]):
+        with pytest.raises(TypeError, match="is not JSON serializable"):
+            anno_json.dumps_indent4(bad)
+    loop: list[object] = [1.0]
+    loop.append(loop)
+    with pytest.raises(ValueError, match="Circular reference"):
+        anno_json.dumps_indent4(loop)
+    deep: list[object] = []
+    for _ in range(200):  # deeper than the writer's line-break tables: json.dumps writes it
+        deep = [deep, 1.0]
+    assert anno_json.dumps_indent4(deep) == json.dumps(deep, indent=4)
+
+
+class IntFlag(int):
+    """An int subclass: json writes int.__repr__ of it."""
+
+
+class StrKind(str, enum.Enum):
+    A = "a"
+
+
+def test_fast_writer_is_what_the_files_hold(tmp_path: Path) -> None:
+    rng = random.Random(7)
+    value = {key: _random_value(rng, 1) for key in TOP_LEVEL_KEYS}
+    path = tmp_path / "00001.json.gz"
+    write_anno(path, value)
+    assert gzip.decompress(path.read_bytes()).decode("utf-8") == json.dumps(value, indent=4)
+    with gzip.open(tmp_path / "ref.json.gz", "wt") as f:
+        json.dump(value, f, indent=4)
+    ref = (tmp_path / "ref.json.gz").read_bytes()
+    ours = encode_anno(value, file_name="ref.json.gz")
+    # Same bytes as gzip.open(..., 'wt') + json.dump but the header's mtime (bytes 4-7).
+    assert ours[:4] == ref[:4] and ours[8:] == ref[8:]

@@ -184,3 +184,29 @@ def test_get_waypoint_is_fast(tiny_map):
         tiny_map.get_waypoint(p)
     per_call = (time.perf_counter() - start) / len(points)
     assert per_call < 1e-3
+
+
+def test_lane_keys_are_get_waypoints_lanes(tiny_map):
+    locations = [Location(10.3, 2.4, 0.0), Location(20.0, -1.0, 0.0), Location(10.0, 8.0, 0.0), Location(-30, 50, 2)]
+    expected = [(w.road_id, w.lane_id, w.section_id) for w in map(tiny_map.get_waypoint, locations)]
+    assert tiny_map.lane_keys(locations) == expected
+    assert tiny_map.lane_keys([(10.3, 2.4, 0.0)]) == expected[:1] and tiny_map.lane_keys([]) == []
+    walk = tiny_map.get_waypoint(locations[2], lane_type=LaneType.SIDEWALK)
+    assert tiny_map.lane_keys(locations[2:3], LaneType.SIDEWALK) == [(walk.road_id, walk.lane_id, walk.section_id)]
+
+
+@pytest.mark.parametrize("town", ["Town01", "Town10HD"])
+def test_nearest_many_is_nearest_to_the_last_bit(carla_towns, town):
+    """The batched lane query gives each point nearest's segment, s and distance, bit for bit."""
+    lane_index = carla_towns[town]._lane_index
+    rng = np.random.default_rng(3)
+    centres = np.concatenate([t.points for t in lane_index._trees.values()])
+    lo, hi = centres.min(0) - 30, centres.max(0) + 30
+    sample = centres[rng.integers(len(centres), size=1500)]
+    queries = np.concatenate([rng.uniform(lo, hi, (1500, 3)), sample + rng.normal(0, 2.0, sample.shape), sample[:300]])
+    for lane_type in (LaneType.DRIVING, LaneType.SIDEWALK, LaneType.DRIVING | LaneType.SIDEWALK | LaneType.SHOULDER):
+        many = lane_index.nearest_many(queries, int(lane_type))
+        for point, got in zip(queries, many):
+            want = lane_index.nearest(point, int(lane_type))
+            assert got == want and (want is None or (got[1].hex(), got[2].hex()) == (want[1].hex(), want[2].hex()))
+    assert lane_index.nearest_many(np.zeros((0, 3))) == []

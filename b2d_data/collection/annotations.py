@@ -226,15 +226,23 @@ def ego_box(world_map: Map, ego: ActorState, lane: LaneIds | None = None) -> dic
     return _ordered(EGO_KEYS, values)
 
 
+def _vehicle_values(
+    world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None, lane: LaneIds | None,
+    num_points: int | None,
+) -> dict:
+    """:func:`_actor_values` and the sweep's points in the actor's box (counted here unless given)."""
+    values = _actor_values(world_map, ego, actor, lane)
+    values["num_points"] = count_points_in_box(points_ego, ego, actor) if num_points is None else num_points
+    return values
+
+
 def vehicle_box(
     world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None, lane: LaneIds | None = None,
     num_points: int | None = None,
 ) -> dict:
     """A ``vehicle`` entry with state ``dynamic``."""
-    if num_points is None:
-        num_points = count_points_in_box(points_ego, ego, actor)
-    values = _actor_values(world_map, ego, actor, lane)
-    values.update({"class": "vehicle", "state": "dynamic", "num_points": num_points})
+    values = _vehicle_values(world_map, ego, actor, points_ego, lane, num_points)
+    values.update({"class": "vehicle", "state": "dynamic"})
     return _ordered(DYNAMIC_VEHICLE_KEYS, values)
 
 
@@ -243,13 +251,8 @@ def static_vehicle_box(
     num_points: int | None = None,
 ) -> dict:
     """A ``vehicle`` entry with state ``static`` (parked-car props)."""
-    if num_points is None:
-        num_points = count_points_in_box(points_ego, ego, actor)
-    values = _actor_values(world_map, ego, actor, lane)
-    values.update({
-        "class": "vehicle", "state": "static", "num_points": num_points,
-        "brake": 1.0, "light_state": "NONE",
-    })  # fmt: skip
+    values = _vehicle_values(world_map, ego, actor, points_ego, lane, num_points)
+    values.update({"class": "vehicle", "state": "static", "brake": 1.0, "light_state": "NONE"})
     return _ordered(STATIC_VEHICLE_KEYS, values)
 
 

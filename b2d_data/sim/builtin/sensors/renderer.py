@@ -837,8 +837,10 @@ class Renderer:
             # The map keeps only the nearest depth, whatever the order: facades go last, without the walls facing
             # away from the sun (behind those facing it).
             facades = runs.get(Material.FACADE, _NO_RUNS) if self.cull_facades else _NO_RUNS
-            rest = [r for m, r in runs.items() if len(r) and not (len(facades) and m == Material.FACADE)]
+            rest = [r for m, r in runs.items() if len(r) and not (self.cull_facades and m == Material.FACADE)]
             groups = {0: np.concatenate(rest) if rest else _NO_RUNS, 1: facades}
+            if not any(len(group_runs) for group_runs in groups.values()):
+                return
             vao = self._vao(("shadow",), "static")
             buffer, offsets = self._indirect_commands(groups, self.SHADOW_SLOT) if self.multi_draw else (None, {})
             for group, group_runs in groups.items():

@@ -226,7 +226,7 @@ def ego_box(world_map: Map, ego: ActorState, lane: LaneIds | None = None) -> dic
     return _ordered(EGO_KEYS, values)
 
 
-def _vehicle_values(
+def _counted_values(
     world_map: Map, ego: ActorState, actor: ActorState, points_ego: np.ndarray | None, lane: LaneIds | None,
     num_points: int | None,
 ) -> dict:
@@ -241,7 +241,7 @@ def vehicle_box(
     num_points: int | None = None,
 ) -> dict:
     """A ``vehicle`` entry with state ``dynamic``."""
-    values = _vehicle_values(world_map, ego, actor, points_ego, lane, num_points)
+    values = _counted_values(world_map, ego, actor, points_ego, lane, num_points)
     values.update({"class": "vehicle", "state": "dynamic"})
     return _ordered(DYNAMIC_VEHICLE_KEYS, values)
 
@@ -251,7 +251,7 @@ def static_vehicle_box(
     num_points: int | None = None,
 ) -> dict:
     """A ``vehicle`` entry with state ``static`` (parked-car props)."""
-    values = _vehicle_values(world_map, ego, actor, points_ego, lane, num_points)
+    values = _counted_values(world_map, ego, actor, points_ego, lane, num_points)
     values.update({"class": "vehicle", "state": "static", "brake": 1.0, "light_state": "NONE"})
     return _ordered(STATIC_VEHICLE_KEYS, values)
 
@@ -277,13 +277,10 @@ def walker_box(
     num_points: int | None = None,
 ) -> dict:
     """A ``walker`` entry."""
-    if num_points is None:
-        num_points = count_points_in_box(points_ego, ego, actor)
-    values = _actor_values(world_map, ego, actor, lane)
+    values = _counted_values(world_map, ego, actor, points_ego, lane, num_points)
     values.update({
         "class": "walker", "gender": actor.attributes.get("gender", "male"),
-        "age": actor.attributes.get("age", "adult"), "num_points": num_points,
-        "bone": _bone_segments(actor),
+        "age": actor.attributes.get("age", "adult"), "bone": _bone_segments(actor),
     })  # fmt: skip
     return _ordered(WALKER_KEYS, values)
 

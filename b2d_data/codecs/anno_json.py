@@ -1,4 +1,4 @@
-"""Annotations as gzip JSON (format.md §3): ``json.dump(indent=4)`` through ``gzip.open(path, 'wt')``.
+"""Annotations as gzip JSON (format.md §3): the text of ``json.dump(indent=4)``, gzipped with ``gzip.open``'s header.
 
 Python's json writes NaN as the bare token ``NaN`` (theta may be NaN), which strict JSON parsers reject;
 ``read_anno`` accepts it and changes nothing (the known data fixes live in ``b2d_data.coords``).
@@ -6,16 +6,18 @@ Python's json writes NaN as the bare token ``NaN`` (theta may be NaN), which str
 
 from __future__ import annotations
 
-import gzip
-import io
 import json
 import logging
 import os
+import struct
+import time
 import zlib
 from itertools import chain
 from json.encoder import encode_basestring_ascii
 from operator import add
 from typing import Any
+
+from isal import isal_zlib as _isal_zlib
 
 from b2d_data.codecs._source import Source, read_source, write_bytes
 from b2d_data.format.anno_schema import check_anno
@@ -24,6 +26,10 @@ from b2d_data.format.errors import B2DFormatError
 logger = logging.getLogger(__name__)
 
 _GZIP_MAGIC = b"\x1f\x8b"
+_FNAME = 0x08  # gzip header flag: a file name follows
+_OS_UNKNOWN = 255  # the OS byte CPython's gzip writes
+#: ISA-L's deflate level for annotations (0–3): 2 compresses as well as 3 at a quarter of its time.
+ANNO_LEVEL = 2
 
 #: Largest decompressed annotation :func:`read_anno` accepts (bytes). Annotations of the largest towns are a few MB;
 #: the cap stops a small crafted file from inflating to gigabytes (300 KB of gzip held 300 MB of spaces). Read at
@@ -178,20 +184,24 @@ def dumps_indent4(obj: Any) -> str:
 def encode_anno(
     anno: dict, *, file_name: str = "00000.json.gz", strict: bool = False, frame: str = "annotation"
 ) -> bytes:
-    """Gzip the annotation text as ``gzip.open(file_name, 'wt')`` would (level 9, FNAME without ``.gz``)."""
-    text = anno_text(anno, strict=strict, frame=frame)
-    bio = io.BytesIO()
-    with gzip.GzipFile(filename=file_name, mode="wb", fileobj=bio, compresslevel=9) as f:
-        f.write(text.encode("utf-8"))
-        # The text wrapper of gzip.open flushes the gzip file when it closes (a zlib sync flush) before the gzip
-        # file ends the stream: the same here, so that the bytes are those of gzip.open (mtime aside).
-        f.flush()
-    return bio.getvalue()
+    """Gzip the annotation text with ``gzip.open(file_name, 'wt')``'s header (FNAME without ``.gz``, write time, OS
+    255), deflated by ISA-L.
+
+    zlib's level 9, which gzip.open uses, cost ~2 ms of CPU a frame for the ~80 KB text; ISA-L's level 2 ~0.05 ms,
+    for files ~25 % larger (~2 KB a frame, 0.3 % of a frame's files). The text, and so what any gzip reader returns,
+    is the same.
+    """
+    text = anno_text(anno, strict=strict, frame=frame).encode("utf-8")
+    name = file_name[:-3] if file_name.endswith(".gz") else file_name
+    header = struct.pack("<BBBBIBB", 0x1F, 0x8B, 8, _FNAME, int(time.time()), 0, _OS_UNKNOWN)
+    body = _isal_zlib.compress(text, ANNO_LEVEL, wbits=-15)  # a raw deflate stream
+    trailer = struct.pack("<II", zlib.crc32(text), len(text) & 0xFFFFFFFF)
+    return b"".join((header, name.encode("latin-1"), b"\0", body, trailer))
 
 
 def write_anno(path: str | os.PathLike[str], anno: dict, *, strict: bool = False, frame: str | None = None) -> int:
     """Write ``anno/NNNNN.json.gz`` exactly as the collector does; returns the number of bytes written."""
-    # Encoded in memory and written in one go: the bytes of gzip.open(path, "wt") with three file system calls.
+    # Encoded in memory and written in one go: three file system calls.
     data = encode_anno(anno, file_name=os.path.basename(os.fspath(path)), strict=strict, frame=frame or os.fspath(path))
     return write_bytes(path, data)
 

@@ -1,5 +1,6 @@
-"""The writers that go straight through file descriptors write the bytes of the ways they replaced: the annotation
-as ``gzip.open(path, "wt")`` wrote it, the radar h5 as h5py wrote it to a path, any file through ``write_bytes``."""
+"""The writers that go straight through file descriptors write what the ways they replaced wrote: the annotation's
+text and gzip header as ``gzip.open(path, "wt")`` wrote them, the radar h5's bytes as h5py wrote them to a path, any
+file through ``write_bytes``."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import h5py
 import numpy as np
 import pytest
 
+from b2d_data.codecs import anno_json
 from b2d_data.codecs._source import write_bytes
 from b2d_data.codecs.anno_json import read_anno, write_anno
 from b2d_data.codecs.radar_h5 import RADAR_DATASETS, encode_radar, write_radar
@@ -24,9 +26,10 @@ def _random_anno(seed: int) -> dict:
     return {"x": float(rng.normal()), "bounding_boxes": boxes}
 
 
-def test_anno_bytes_are_those_of_gzip_open(tmp_path, monkeypatch):
+def test_anno_is_what_gzip_open_wrote(tmp_path, monkeypatch):
     # The old writer, verbatim: json text through gzip.open(path, "wt"). mtime frozen: the header holds the time.
     monkeypatch.setattr(gzip.time, "time", lambda: 1_700_000_000.0)
+    monkeypatch.setattr(anno_json.time, "time", lambda: 1_700_000_000.0)
     for seed in (0, 1):
         anno = _random_anno(seed)
         (tmp_path / "old").mkdir(exist_ok=True)
@@ -35,7 +38,11 @@ def test_anno_bytes_are_those_of_gzip_open(tmp_path, monkeypatch):
         with gzip.open(old, "wt", encoding="utf-8") as f:
             f.write(json.dumps(anno, indent=4))
         size = write_anno(new, anno)
-        assert new.read_bytes() == old.read_bytes()
+        ours, theirs = new.read_bytes(), old.read_bytes()
+        # The header but its level flag (byte 8: ISA-L deflates, not zlib's level 9), then the same text.
+        header = len(b"\x1f\x8b\x08\x08") + 4 + 2 + len(b"00042.json\x00")
+        assert ours[:8] == theirs[:8] and ours[9:header] == theirs[9:header]
+        assert gzip.decompress(ours) == gzip.decompress(theirs) == json.dumps(anno, indent=4).encode()
         assert size == new.stat().st_size
         back = read_anno(new)
         assert back["bounding_boxes"][1] == anno["bounding_boxes"][1]

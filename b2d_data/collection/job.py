@@ -101,6 +101,7 @@ class CollectConfig:
             radar_v004_mounts=FormatVersion(self.format_version) is FormatVersion.V004,
             float_depth=FormatVersion(self.format_version).float_depth,  # else only the uint8 depth PNG is written
             jpeg_planes="gpu",  # colour is only written as JPEG: converted on a GPU, no RGB read back
+            png_rows=True,  # the labels are only written as PNG: laid out as its scanlines on a GPU
         )  # fmt: skip
 
     def resolved_encode_workers(self) -> int:

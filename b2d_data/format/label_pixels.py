@@ -11,10 +11,14 @@ import numpy as np
 
 
 def label_views(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(tags (H, W) uint8, ids (H, W) little-endian uint16), both views of a contiguous (H, W, 4) uint8 array."""
-    if packed.dtype != np.uint8 or packed.ndim != 3 or packed.shape[2] != 4 or not packed.flags.c_contiguous:
-        raise ValueError(f"packed labels must be a contiguous (H, W, 4) uint8 array, got {packed.dtype} {packed.shape}")
-    h, w = packed.shape[:2]
+    """(tags (H, W) uint8, ids (H, W) little-endian uint16), both views of an (H, W, 4) uint8 array.
+
+    Each row of ``packed`` must be contiguous; rows may lie apart (the renderer's PNG scanlines keep a filter byte in
+    front of each row).
+    """
+    if packed.dtype != np.uint8 or packed.ndim != 3 or packed.shape[2] != 4 or packed.strides[1:] != (4, 1):
+        raise ValueError(f"packed labels must be an (H, W, 4) uint8 array with contiguous rows, got {packed.dtype} "
+                         f"{packed.shape} strides {packed.strides}")  # fmt: skip
     tags = packed[..., 0]
-    ids = np.ndarray((h, w), dtype="<u2", buffer=packed, offset=1, strides=(4 * w, 4))
+    ids = packed[..., 1:3].view("<u2")[..., 0]
     return tags, ids

@@ -292,6 +292,9 @@ class RigConfig:
     float_depth: bool = True  # depth as float32 metres; False: the uint8 metres the depth PNG stores (less read-back)
     # Colour as the JPEG's Y/Cb/Cr planes (CameraFrame.jpeg_planes, no rgb): "off", "on", or "gpu" (hardware only).
     jpeg_planes: str = "off"
+    # Depth, semantic and instance handed over as views of their PNG scanlines (where the renderer packs its targets,
+    # i.e. on a hardware GPU): the PNG encoder then deflates them without filtering them first.
+    png_rows: bool = False
     lidar: bool = True
     lidar_azimuth_steps: int = 1000  # 64 channels × this many rays per sweep (600k pts/s at 10 Hz ≈ 940)
     # LiDAR and radar rays cast by a compute shader (gpu_raycast.py) instead of Embree: "off", "on", or "gpu"

@@ -21,7 +21,7 @@ from b2d_data.codecs import (
     read_instance_png,
     read_semantic_png,
 )
-from b2d_data.codecs.png import encode_png, sub_filtered
+from b2d_data.codecs.png import encode_png, png_rows, sub_filtered
 
 
 def _label_like(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
@@ -55,6 +55,45 @@ def test_sub_filter_by_hand():
     # RGBA: the left neighbour is the same channel one pixel (4 bytes) earlier.
     px = np.array([[[1, 2, 3, 255], [4, 2, 1, 255]]], np.uint8)
     assert sub_filtered(px).tolist() == [[1, 1, 2, 3, 255, 3, 0, 254, 0]]
+
+
+def _idat(data: bytes) -> bytes:
+    """The decompressed scanlines of a one-IDAT PNG."""
+    start = data.index(b"IDAT")
+    length = int.from_bytes(data[start - 4 : start], "big")
+    return zlib.decompress(data[start + 4 : start + 4 + length])
+
+
+@pytest.mark.parametrize("channels", [1, 3, 4])
+def test_scanlines_in_memory_are_deflated_as_they_lie(channels):
+    """An image whose rows each follow a zero byte is written with filter None from that memory; decoded the same."""
+    rng = np.random.default_rng(channels)
+    h, w = 6, 5
+    block = np.zeros(3 + h * (w * channels + 1), np.uint8)  # the rows start 2 bytes into a larger block
+    lines = block[2 : 2 + h * (w * channels + 1)].reshape(h, w * channels + 1)
+    lines[:, 1:] = rng.integers(0, 256, (h, w * channels), dtype=np.uint8)
+    img = lines[:, 1:] if channels == 1 else lines[:, 1:].reshape(h, w, channels)
+    found = png_rows(img)
+    assert found is not None and np.shares_memory(found, block) and found.shape == (h, w * channels + 1)
+    data = encode_png(img)
+    # Filter byte 0 and the pixels as they are: row 0 is [0, p00, p01, ...].
+    assert _idat(data) == lines.tobytes()
+    via_pil = np.asarray(Image.open(io.BytesIO(data)))
+    assert np.array_equal(via_pil.reshape(img.shape), img)
+    # One non-zero byte before a row: no longer scanlines; SUB-filtered as any other image, same pixels.
+    lines[4, 0] = 9
+    assert png_rows(img) is None
+    assert _idat(encode_png(img))[0] == 1
+    assert np.array_equal(np.asarray(Image.open(io.BytesIO(encode_png(img)))).reshape(img.shape), img)
+
+
+def test_scanlines_need_a_byte_before_each_row_inside_the_block():
+    block = np.zeros((4, 9), np.uint8)
+    assert png_rows(block[:, 1:]) is not None  # one byte before every row, all zero
+    assert png_rows(block[:, :8]) is None  # the first row starts the block: nothing before it
+    assert png_rows(block[:, 2:]) is None  # rows 2 bytes apart
+    assert png_rows(np.zeros((4, 8), np.uint8)) is None  # an array of its own
+    assert png_rows(block[1:, 1:]) is not None  # the byte before row 1 is the last one of row 0
 
 
 def test_instance_pixels_by_hand():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from b2d_data.codecs.labels_png import encode_instance_png, read_instance_png
 from b2d_data.format.label_pixels import label_views
@@ -34,3 +35,18 @@ def test_instance_png_from_views_is_the_file_from_planes():
     got_tags, got_ids = read_instance_png(data)
     np.testing.assert_array_equal(got_tags, tags)
     np.testing.assert_array_equal(got_ids, ids)
+
+
+def test_views_of_rows_that_lie_apart():
+    """Rows one byte apart (the renderer's PNG scanlines): the same tags and ids, still views."""
+    packed = _packed()
+    lines = np.zeros((2, 13), np.uint8)
+    lines[:, 1:] = packed.reshape(2, 12)
+    spaced = lines[:, 1:].reshape(2, 3, 4)
+    tags, ids = label_views(spaced)
+    np.testing.assert_array_equal(tags, [[0, 7, 0], [0, 0, 14]])
+    np.testing.assert_array_equal(ids, [[0, 4660, 0], [0, 0, 255]])
+    lines[1, 1 + 4 * 2 + 2] = 2  # row 1, pixel 2, high byte: id 255 + 2 * 256
+    assert ids[1, 2] == 767
+    with pytest.raises(ValueError, match="contiguous rows"):
+        label_views(packed[:, ::2])  # pixels apart within a row

@@ -426,7 +426,7 @@ class _Targets:
     """Colour (and, for labelled cameras, depth, tag and id) targets plus a depth buffer of one resolution."""
 
     def __init__(self, ctx: moderngl.Context, width: int, height: int, labels: bool, depth8: bool,
-                 planes: bool = False, packed: bool = False) -> None:  # fmt: skip
+                 planes: bool = False, packed: bool = False, png_rows: bool = False) -> None:  # fmt: skip
         self.color = ctx.texture((width, height), 4, dtype="f1")
         # With ``packed`` the scene is drawn into one RG32UI target (shaders.UNPACK_COMPUTE), whose pixels a compute
         # pass spreads over the targets below; they are then only read back, through ``read_fbo``.
@@ -440,16 +440,30 @@ class _Targets:
                            ctx.texture(half, 1, dtype="u1"))  # fmt: skip
             self.luma_fbo = ctx.framebuffer([self.planes[0]])
             self.chroma_fbo = ctx.framebuffer(list(self.planes[1:]))
+        # With ``png_rows`` (packed targets only) the unpack pass writes depth, labels and tags as PNG scanlines: a
+        # zero filter byte, then the row; the labels as a one-byte target four bytes per pixel. Read back, they are
+        # deflated where they lie (``codecs.png.png_rows``), without a filtering pass on the CPU.
+        self.png_rows = png_rows and self.packed is not None and labels and depth8
+        lead = 1 if self.png_rows else 0
         # Unlabelled cameras (top-down) bind only the colour target: the other outputs are dropped unwritten.
-        self.depth = ctx.texture((width, height), 1, dtype="u1" if depth8 else "f4") if labels else None
+        self.depth = ctx.texture((width + lead, height), 1, dtype="u1" if depth8 else "f4") if labels else None
         # Tag and instance id in one RGBA8UI target, in the byte order of an instance PNG pixel.
-        self.labels = ctx.texture((width, height), 4, dtype="u1") if labels else None
+        if self.png_rows:
+            self.labels = ctx.texture((4 * width + 1, height), 1, dtype="u1")
+        else:
+            self.labels = ctx.texture((width, height), 4, dtype="u1") if labels else None
         # The tags once more, alone: the semantic PNG wants a contiguous plane, and a one-channel read of the
         # RGBA8UI target takes the NVIDIA driver's slow conversion path (9.9 ms per 1600×900 camera on an H100,
         # against 0.34 ms for a read of a one-byte target).
-        self.tags = ctx.texture((width, height), 1, dtype="u1") if labels else None
+        self.tags = ctx.texture((width + lead, height), 1, dtype="u1") if labels else None
         self.zbuf = ctx.depth_renderbuffer((width, height))
         attachments = [self.color, self.depth, self.labels, self.tags] if labels else [self.color]
+        # The scanline targets are wider than the image: each width gets its own read framebuffer.
+        self.rows_fbo = self.labels_fbo = None
+        if self.png_rows:
+            self.rows_fbo = ctx.framebuffer([self.depth, self.tags])
+            self.labels_fbo = ctx.framebuffer([self.labels])
+            attachments = [self.color]
         if self.packed is not None:
             self.read_fbo = ctx.framebuffer(attachments)
             attachments = [self.packed]
@@ -462,8 +476,8 @@ class _Targets:
 
     def release(self) -> None:
         fbos = (self.fbo,) if self.read_fbo is self.fbo else (self.fbo, self.read_fbo)
-        for obj in (*fbos, self.luma_fbo, self.chroma_fbo, *self.planes, self.color, self.depth, self.labels,
-                    self.tags, self.packed, self.zbuf):  # fmt: skip
+        for obj in (*fbos, self.luma_fbo, self.chroma_fbo, self.rows_fbo, self.labels_fbo, *self.planes, self.color,
+                    self.depth, self.labels, self.tags, self.packed, self.zbuf):  # fmt: skip
             if obj is not None:
                 obj.release()
 
@@ -557,7 +571,7 @@ class Renderer:
     def __init__(
         self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False,
         jpeg_planes: JpegPlanes = "off", packed: bool | None = None, pixel_buffer: bool | None = None,
-        shadows: bool = True, shadow_size: int | None = None, cull_facades: bool = True,
+        shadows: bool = True, shadow_size: int | None = None, cull_facades: bool = True, png_rows: bool = False,
     ) -> None:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
@@ -587,12 +601,15 @@ class Renderer:
             raise RuntimeError(f"packed targets need depth8 and OpenGL 4.3 compute shaders; {self.gl_renderer} "
                                f"offers OpenGL {self.ctx.version_code}, depth8={self.depth8}")  # fmt: skip
         self.packed = packed
+        # Depth, labels and tags read back as PNG scanlines (``_Targets``; packed targets only): for a writer that
+        # encodes them as PNG and nothing else. The arrays handed out are then views whose rows lie one byte apart.
+        self.png_rows = png_rows and packed
         # Read-backs through one pixel-pack buffer per frame (``_Readback``): by default on a hardware GPU; on
         # llvmpipe the buffer is one more copy in host memory.
         self.pixel_buffer = self.hardware if pixel_buffer is None else pixel_buffer
         self._pack_buffer: moderngl.Buffer | None = None
         self._host = HostPool()
-        self._unpack_programs: dict[bool, moderngl.ComputeShader] = {}
+        self._unpack_programs: dict[tuple[bool, bool], moderngl.ComputeShader] = {}
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
@@ -890,21 +907,23 @@ class Renderer:
         key = (width, height, labels, slot)
         if key not in self._targets:
             planes = self.jpeg_planes and width % 2 == 0 and height % 2 == 0
-            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8, planes, self.packed)
+            self._targets[key] = _Targets(self.ctx, width, height, labels, self.depth8, planes, self.packed,
+                                          self.png_rows)  # fmt: skip
         return self._targets[key]
 
     def _unpack(self, targets: _Targets) -> None:
         """Spread the packed target over the colour (and depth, label and tag) targets (one dispatch)."""
         labels = targets.labels is not None
-        program = self._unpack_programs.get(labels)
+        program = self._unpack_programs.get((labels, targets.png_rows))
         if program is None:
-            program = self._unpack_programs[labels] = self.ctx.compute_shader(shaders.unpack_compute(labels))
+            program = self.ctx.compute_shader(shaders.unpack_compute(labels, targets.png_rows))
+            self._unpack_programs[labels, targets.png_rows] = program
         assert targets.packed is not None
         targets.packed.bind_to_image(0, read=True, write=False)
         outputs = (targets.color, targets.depth, targets.labels, targets.tags) if labels else (targets.color,)
         for unit, texture in enumerate(outputs, start=1):
             texture.bind_to_image(unit, read=False, write=True)
-        w, h = targets.packed.size
+        w, h = targets.packed.size  # the image's size (the scanline targets are wider)
         gx, gy = shaders.UNPACK_GROUP
         program.run((w + gx - 1) // gx, (h + gy - 1) // gy, 1)
         # Read next by the planes pass (texel fetches) and by glReadPixels through the read framebuffer.
@@ -1060,7 +1079,12 @@ class Renderer:
             else:
                 # Reading RGBA is about twice as fast as letting GL convert to RGB; the JPEG encoders drop the alpha.
                 reads.add(targets.read_fbo, 0, (h, w, 4), "f1")
-            if view.labels:
+            if view.labels and targets.png_rows:
+                assert targets.rows_fbo is not None and targets.labels_fbo is not None
+                reads.add(targets.rows_fbo, 0, (h, w + 1), "u1")
+                reads.add(targets.labels_fbo, 0, (h, 4 * w + 1), "u1")
+                reads.add(targets.rows_fbo, 1, (h, w + 1), "u1")
+            elif view.labels:
                 reads.add(targets.read_fbo, 1, (h, w), "u1" if self.depth8 else "f4")
                 reads.add(targets.read_fbo, 2, (h, w, 4), "u1")
                 # The semantic PNG filters a contiguous plane ~9× faster than a strided view of the labels.
@@ -1079,6 +1103,9 @@ class Renderer:
                 frames.append(CameraFrame(rgb=rgb, jpeg_planes=planes))
                 continue
             depth, labels, semantic = next(arrays), next(arrays), next(arrays)
+            if targets.png_rows:  # the images without their filter bytes (views: the encoder finds the rows again)
+                depth, semantic = depth[:, 1:], semantic[:, 1:]
+                labels = labels[:, 1:].reshape(view.height, view.width, 4)
             _, instance = label_views(labels)
             frames.append(CameraFrame(rgb=rgb, depth=depth, semantic=semantic, instance=instance, labels=labels,
                                       jpeg_planes=planes))  # fmt: skip

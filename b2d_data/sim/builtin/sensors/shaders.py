@@ -806,7 +806,11 @@ layout(rg32ui, binding = 0) readonly uniform uimage2D u_packed;
 layout(rgba8, binding = 1) writeonly uniform image2D u_color;
 #if LABELS
 layout(r8ui, binding = 2) writeonly uniform uimage2D u_depth;
+#if ROWS
+layout(r8ui, binding = 3) writeonly uniform uimage2D u_labels;
+#else
 layout(rgba8ui, binding = 3) writeonly uniform uimage2D u_labels;
+#endif
 layout(r8ui, binding = 4) writeonly uniform uimage2D u_tags;
 #endif
 void main() {
@@ -817,14 +821,32 @@ void main() {
     imageStore(u_color, p, vec4(float(v.x & 255u), float((v.x >> 8) & 255u), float((v.x >> 16) & 255u), 255.0) / 255.0);
 #if LABELS
     uint tag = v.x >> 24;
+#if ROWS
+    // PNG scanlines: filter byte 0 (None) in column 0, then the row; the labels four bytes per pixel.
+    if (p.x == 0) {
+        imageStore(u_depth, ivec2(0, p.y), uvec4(0u));
+        imageStore(u_labels, ivec2(0, p.y), uvec4(0u));
+        imageStore(u_tags, ivec2(0, p.y), uvec4(0u));
+    }
+    int x = 4 * p.x + 1;
+    imageStore(u_depth, ivec2(p.x + 1, p.y), uvec4(v.y >> 16));
+    imageStore(u_labels, ivec2(x, p.y), uvec4(tag));
+    imageStore(u_labels, ivec2(x + 1, p.y), uvec4(v.y & 255u));
+    imageStore(u_labels, ivec2(x + 2, p.y), uvec4((v.y >> 8) & 255u));
+    imageStore(u_labels, ivec2(x + 3, p.y), uvec4(255u));
+    imageStore(u_tags, ivec2(p.x + 1, p.y), uvec4(tag));
+#else
     imageStore(u_depth, p, uvec4(v.y >> 16));
     imageStore(u_labels, p, uvec4(tag, v.y & 255u, (v.y >> 8) & 255u, 255u));
     imageStore(u_tags, p, uvec4(tag));
+#endif
 #endif
 }
 """.replace("GROUP_X", str(UNPACK_GROUP[0])).replace("GROUP_Y", str(UNPACK_GROUP[1]))
 
 
-def unpack_compute(labels: bool) -> str:
-    """The unpacking compute shader for labelled cameras (all four targets) or colour-only ones."""
-    return UNPACK_COMPUTE.replace("#version 430", f"#version 430\n#define LABELS {int(labels)}", 1)
+def unpack_compute(labels: bool, png_rows: bool = False) -> str:
+    """The unpacking compute shader for labelled cameras (all four targets, as PNG scanlines with ``png_rows``) or
+    colour-only ones."""
+    defines = f"#version 430\n#define LABELS {int(labels)}\n#define ROWS {int(labels and png_rows)}"
+    return UNPACK_COMPUTE.replace("#version 430", defines, 1)

@@ -316,8 +316,8 @@ class SensorSuite(SensorScene):
         self._geolocate = geolocate
         cams = [c for c in config.cameras if c in CAMERA_BY_FOLDER]
         self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
-        renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes)  # type: ignore[arg-type]
-                    if self._camera_specs else None)  # fmt: skip
+        renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes,  # type: ignore[arg-type]
+                             png_rows=config.png_rows) if self._camera_specs else None)  # fmt: skip
         # B2D_GPU_RAYS=off|on|gpu overrides the config (A/B measurements of a collection without code changes).
         gpu_rays = os.environ.get("B2D_GPU_RAYS", config.gpu_rays)
         self._setup_scene(scene, renderer, rays=config.lidar or config.radar, gpu_rays=gpu_rays)

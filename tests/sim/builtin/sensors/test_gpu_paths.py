@@ -6,9 +6,13 @@ from __future__ import annotations
 import functools
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 
+from b2d_data.codecs.depth import encode_depth_png
+from b2d_data.codecs.labels_png import encode_instance_png, encode_semantic_png, read_instance_png
+from b2d_data.codecs.png import png_rows
 from b2d_data.format.weather import WeatherParameters
 from b2d_data.sim.builtin.sensors import suite as suite_module
 from b2d_data.sim.builtin.sensors.map_mesh import build_static_scene
@@ -27,12 +31,14 @@ WEATHERS = {
 }
 
 
-def _capture(monkeypatch: pytest.MonkeyPatch, packed: bool, planes: str, pixel_buffer: bool = False) -> dict[str, dict]:
+def _capture(monkeypatch: pytest.MonkeyPatch, packed: bool, planes: str, pixel_buffer: bool = False,
+             png_rows: bool = False) -> dict[str, dict]:  # fmt: skip
     monkeypatch.setattr(suite_module, "Renderer", functools.partial(Renderer, packed=packed, pixel_buffer=pixel_buffer))
-    suite = SensorSuite.from_scene(build_static_scene(crossroads_layout(), seed=3), replace(CONFIG, jpeg_planes=planes, float_depth=False),
-                                   seed=11)  # fmt: skip
+    config = replace(CONFIG, jpeg_planes=planes, float_depth=False, png_rows=png_rows)
+    suite = SensorSuite.from_scene(build_static_scene(crossroads_layout(), seed=3), config, seed=11)
     try:
         assert suite.renderer.packed is packed and suite.renderer.pixel_buffer is pixel_buffer
+        assert suite.renderer.png_rows is (png_rows and packed)
         return {name: suite.capture(snapshot_of(_actors(), weather, frame=3), 1).cameras
                 for name, weather in WEATHERS.items()}  # fmt: skip
     finally:
@@ -66,6 +72,39 @@ def test_gpu_paths_give_the_same_pixels(monkeypatch, planes, packed, pixel_buffe
         front = cameras["front"]
         assert {11, 1, 14} <= set(np.unique(front.semantic).tolist()), weather
         assert len(np.unique(front.instance)) >= 3, weather
+
+
+@pytest.mark.parametrize("pixel_buffer", [False, True])
+def test_png_rows_hand_over_the_same_labels_as_scanlines(monkeypatch, pixel_buffer):
+    """With ``png_rows`` depth, semantic, instance and labels are the same values, each a view of its PNG scanlines
+    (a zero filter byte before every row), and their PNG files decode to the same pixels."""
+    plain = _capture(monkeypatch, True, "on", pixel_buffer)
+    rows = _capture(monkeypatch, True, "on", pixel_buffer, png_rows=True)
+    for weather, cameras in plain.items():
+        for cam, frame in cameras.items():
+            other = rows[weather][cam]
+            for a, b in zip(frame.jpeg_planes, other.jpeg_planes):
+                np.testing.assert_array_equal(a, b)
+            if frame.depth is None:  # the top-down camera has colour only
+                assert other.depth is None and other.labels is None
+                continue
+            h, w = frame.depth.shape
+            for field, encode in (("depth", encode_depth_png), ("semantic", encode_semantic_png)):
+                a, b = getattr(frame, field), getattr(other, field)
+                np.testing.assert_array_equal(a, b, err_msg=f"{weather} {cam} {field}")
+                assert b.strides == (w + 1, 1) and png_rows(a) is None
+                lines = png_rows(b)
+                assert lines is not None and lines.shape == (h, w + 1) and not lines[:, 0].any()
+                assert encode(b) != encode(a)  # filter None against SUB: other bytes...
+                np.testing.assert_array_equal(cv2.imdecode(np.frombuffer(encode(b), np.uint8), cv2.IMREAD_UNCHANGED), a)  # ...the same pixels
+            np.testing.assert_array_equal(frame.labels, other.labels)
+            np.testing.assert_array_equal(frame.instance, other.instance)
+            assert other.labels.strides == (4 * w + 1, 4, 1)
+            lines = png_rows(other.labels)
+            assert lines is not None and lines.shape == (h, 4 * w + 1)
+            tags, ids = read_instance_png(encode_instance_png(other.semantic, other.instance, packed=other.labels))
+            np.testing.assert_array_equal(tags, frame.semantic)
+            np.testing.assert_array_equal(ids, frame.instance)
 
 
 def test_packed_targets_need_uint8_depth():

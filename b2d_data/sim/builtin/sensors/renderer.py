@@ -27,7 +27,7 @@ import numpy as np
 from b2d_data.format.label_pixels import label_views
 from b2d_data.format.record import CameraFrame
 from b2d_data.sim.builtin.sensors import shaders
-from b2d_data.sim.builtin.sensors.host_pool import HostPool
+from b2d_data.sim.builtin.sensors.host_pool import HostPool, MappedPool
 from b2d_data.sim.builtin.sensors.lighting import FOG_BASE_HEIGHT, Lighting
 from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, grid_triangles
 from b2d_data.sim.builtin.sensors.vehicle_lights import MAX_LIGHTS, NO_BLOCKER, SpotLights, beams_in_view
@@ -497,11 +497,12 @@ class _Readback:
     ARRAY_TYPE = {"f1": np.uint8, "u1": np.uint8, "f4": np.float32}
 
     def __init__(self, ctx: moderngl.Context, buffer: moderngl.Buffer | None, use_buffer: bool = True,
-                 host: HostPool | None = None) -> None:  # fmt: skip
+                 host: HostPool | None = None, mapped: MappedPool | None = None) -> None:  # fmt: skip
         self.ctx = ctx
         self.use_buffer = use_buffer
         self.buffer = buffer
         self.host = host or HostPool(keep=0)
+        self.mapped = mapped
         self._reads: list[tuple[moderngl.Framebuffer, int, tuple[int, ...], str, int]] = []
         self._size = 0
 
@@ -520,6 +521,14 @@ class _Readback:
 
     def finish(self) -> list[np.ndarray]:
         """The arrays, in the order they were added."""
+        taken = self.mapped.take(self._size) if self.use_buffer and self.mapped is not None else None
+        if taken is not None:
+            # Straight into mapped host memory: one wait for the GPU, then the arrays view what it wrote.
+            buffer, mapped = taken
+            for fbo, attachment, shape, dtype, offset in self._reads:
+                self._read(fbo, attachment, shape, dtype, buffer, offset)
+            self.ctx.finish()
+            return [self._view(mapped, shape, dtype, offset) for _, _, shape, dtype, offset in self._reads]
         # One block of host memory for the frame: its arrays are views of it.
         host = self.host.take(self._size)
         if not self.use_buffer:
@@ -542,6 +551,20 @@ class _Readback:
     def _view(cls, host: np.ndarray, shape: tuple[int, ...], dtype: str, offset: int) -> np.ndarray:
         array_type = np.dtype(cls.ARRAY_TYPE[dtype])
         return host[offset : offset + int(np.prod(shape)) * array_type.itemsize].view(array_type).reshape(shape)
+
+
+#: Contexts of closed renderers whose mapped read-back memory some arrays still viewed (``Renderer.close``).
+_KEPT_OPEN: list[tuple[moderngl.Context, MappedPool]] = []
+
+
+def _release_kept_open() -> None:
+    """Release the kept contexts whose mapped memory nothing views any more."""
+    for ctx, mapped in list(_KEPT_OPEN):
+        with ctx:
+            free = mapped.release()
+        if free:
+            ctx.release()
+            _KEPT_OPEN.remove((ctx, mapped))
 
 
 _F = TypeVar("_F", bound=Callable)
@@ -609,6 +632,8 @@ class Renderer:
         self.pixel_buffer = self.hardware if pixel_buffer is None else pixel_buffer
         self._pack_buffer: moderngl.Buffer | None = None
         self._host = HostPool()
+        # With a pixel buffer, read-backs land in buffers mapped into host memory where the driver can (GL 4.4).
+        self._mapped = MappedPool(self.ctx) if self.pixel_buffer and MappedPool.supported(self.ctx) else None
         self._unpack_programs: dict[tuple[bool, bool], moderngl.ComputeShader] = {}
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
@@ -1067,7 +1092,7 @@ class Renderer:
                 self._unpack(targets)
             if targets.planes:
                 self._convert_planes(targets)
-        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer, self._host)
+        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer, self._host, self._mapped)
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
             if targets.planes:
@@ -1123,4 +1148,12 @@ class Renderer:
             if self._pack_buffer is not None:
                 self._pack_buffer.release()
                 self._pack_buffer = None
-        self.ctx.release()
+            mapped_free = self._mapped is None or self._mapped.release()
+        if mapped_free:
+            self.ctx.release()
+        else:
+            # Arrays of a frame still view mapped read-back memory, which the context's end would unmap under them:
+            # the context is kept until they are gone (released by a later close).
+            log.debug("GL context kept open: a frame's arrays still view its mapped read-back memory")
+            _KEPT_OPEN.append((self.ctx, self._mapped))
+        _release_kept_open()

@@ -116,8 +116,10 @@ class MappedPool:
 
     @staticmethod
     def supported(ctx: moderngl.Context) -> bool:
-        """Whether ``ctx`` has buffer storage (OpenGL 4.4) and its entry points can be found."""
-        return ctx.version_code >= 440 and _buffer_calls() is not None
+        """Whether ``ctx`` has buffer storage (OpenGL 4.4, or the extension) and its entry points can be found."""
+        # The NVIDIA driver hands out exactly the 4.3 context the renderer asks for, with the extension.
+        storage = ctx.version_code >= 440 or "GL_ARB_buffer_storage" in ctx.extensions
+        return storage and _buffer_calls() is not None
 
     def take(self, nbytes: int) -> tuple[moderngl.Buffer, np.ndarray] | None:
         """A mapped pixel-pack buffer of at least ``nbytes`` and its memory as a uint8 array, or ``None``."""

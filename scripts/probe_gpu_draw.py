@@ -3,7 +3,7 @@
 Every draw of the profiled route is timed (glFinish before and after, so each query holds that draw alone), and the
 front camera of every frame is drawn again into scratch targets under variations: the same view, a trivial fragment
 shader, facades before roads, only the tiles nearer than 300 / 150 / 80 m, half width and height, no static scene.
-The JPEG planes dispatch is timed too. Arguments are bench_collect's; numbers only mean something on a GPU.
+The JPEG planes and unpack dispatches and the sun's shadow map are timed too. Arguments are bench_collect's; numbers only mean something on a GPU.
 
     python scripts/probe_gpu_draw.py --skip-pipeline --frames 24 --warmup 3 --scenario Accident
 """
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import atexit
 import copy
+import dataclasses
 import runpy
 import sys
 from collections import defaultdict
@@ -45,6 +46,7 @@ COUNTS: defaultdict[str, list[float]] = defaultdict(list)
 _draw = R.Renderer._draw
 _planes = R.Renderer._convert_planes
 _unpack = R.Renderer._unpack
+_shadow_map = R.Renderer._update_shadow_map
 _fragment = S.scene_fragment
 _trivial_programs: dict[int, tuple[dict, dict]] = {}
 
@@ -60,9 +62,9 @@ def timed(renderer: R.Renderer, name: str, fn: Any, *args: Any) -> Any:
     return out
 
 
-def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: dict) -> None:
+def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: dict, lights: Any) -> None:
     """Draw the front camera again under each variation."""
-    args = (light, uniforms, SCRATCH_SLOT)
+    args = (light, uniforms, SCRATCH_SLOT, lights)
     timed(renderer, "same view again", _draw, view, *args)
     programs, vaos = renderer._programs, renderer._vaos
     renderer._programs, renderer._vaos = _trivial_programs.setdefault(id(renderer), ({}, {}))
@@ -93,12 +95,33 @@ def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: d
         finally:
             renderer._static_culling = culling
     half = R.CameraView(view.sensor_to_world, view.fov, view.width // 2, view.height // 2, view.labels)
-    timed(renderer, "half width and height", _draw, half, light, uniforms, SCRATCH_SLOT + 1)
+    timed(renderer, "half width and height", _draw, half, light, uniforms, SCRATCH_SLOT + 1, lights)
     renderer._static_culling = R._Culling({})
     try:
         timed(renderer, "no static scene (actors + sky)", _draw, view, *args)
     finally:
         renderer._static_culling = culling
+    vao = renderer._vao
+
+    class _NoDraw:
+        def render(self, *args: Any, **kwargs: Any) -> None:
+            pass
+
+    renderer._vao = lambda key, kind: _NoDraw() if kind == "sky" else vao(key, kind)  # type: ignore[method-assign]
+    try:
+        timed(renderer, "without the sky pass", _draw, view, *args)
+    finally:
+        del renderer._vao
+    batches = renderer._dyn_batches
+    renderer._dyn_batches = {}
+    try:
+        timed(renderer, "no actors (static scene + sky)", _draw, view, *args)
+    finally:
+        renderer._dyn_batches = batches
+    if light.night > 0.0:
+        day = dataclasses.replace(light, night=0.0, beams=0.0)
+        timed(renderer, "night drawn with the day programs", _draw, view, day, uniforms, SCRATCH_SLOT, None)
+        timed(renderer, "night without vehicle lights", _draw, view, light, uniforms, SCRATCH_SLOT, None)
     renderer.ctx.enable(R.moderngl.RASTERIZER_DISCARD)
     try:
         timed(renderer, "rasterizer discard (vertices only)", _draw, view, *args)
@@ -119,11 +142,12 @@ def variations(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: d
     COUNTS["static vertices in the scene (thousands)"].append(int(culling.count.sum()) / 1e3)
 
 
-def draw(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: dict, slot: int = 0) -> Any:
+def draw(renderer: R.Renderer, view: R.CameraView, light: Any, uniforms: dict, slot: int = 0,
+         lights: Any = None) -> Any:  # fmt: skip
     out = timed(renderer, f"draw {view.width}x{view.height}{' labelled' if view.labels else ''}", _draw, view, light,
-                uniforms, slot)  # fmt: skip
+                uniforms, slot, lights)  # fmt: skip
     if slot == 0 and view.labels:
-        variations(renderer, view, light, uniforms)
+        variations(renderer, view, light, uniforms, lights)
     return out
 
 
@@ -133,6 +157,10 @@ def planes(renderer: R.Renderer, targets: Any) -> None:
 
 def unpack(renderer: R.Renderer, targets: Any) -> None:
     timed(renderer, "unpack dispatch", _unpack, targets)
+
+
+def shadow_map(renderer: R.Renderer, *args: Any) -> None:
+    timed(renderer, "sun's shadow map", _shadow_map, *args)
 
 
 @atexit.register
@@ -148,5 +176,6 @@ if __name__ == "__main__":
     R.Renderer._draw = draw  # type: ignore[method-assign]
     R.Renderer._convert_planes = planes  # type: ignore[method-assign]
     R.Renderer._unpack = unpack  # type: ignore[method-assign]
+    R.Renderer._update_shadow_map = shadow_map  # type: ignore[method-assign]
     sys.argv = ["bench_collect.py", *sys.argv[1:]]
     runpy.run_path(str(Path(__file__).with_name("bench_collect.py")), run_name="__main__")

@@ -362,16 +362,17 @@ class SensorSuite(SensorScene):
         self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
         self.imu = ImuGnss(NOISE, seed)
         self.timings = CaptureTimings()
+        # Sensor → ego 4×4 of every rig sensor, in sensor_poses' order: fixed, so worked out once.
+        radar_specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
+        self._mounts = {c.sensor_id: c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
+        self._mounts.update({r.sensor_id: r.mount.matrix() for r in radar_specs})
+        self._mounts[LIDAR.sensor_id] = LIDAR.mount.matrix()
 
     # ------------------------------------------------------------------------------------------ poses
     def sensor_poses(self, ego: ActorState) -> dict[str, np.ndarray]:
         """Sensor → world 4×4 of every rig sensor, keyed by sensor id (CAM_*, TOP_DOWN, RADAR_*, LIDAR_TOP)."""
         ego_m = ego.transform.matrix()
-        radars = RADARS_V004 if self.config.radar_v004_mounts else RADARS_V0
-        out = {c.sensor_id: ego_m @ c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
-        out.update({r.sensor_id: ego_m @ r.mount.matrix() for r in radars})
-        out[LIDAR.sensor_id] = ego_m @ LIDAR.mount.matrix()
-        return out
+        return {sensor_id: ego_m @ mount for sensor_id, mount in self._mounts.items()}
 
     # ------------------------------------------------------------------------------------------ capture
     def _cast_rays(self, tick: TickScene, poses: dict[str, np.ndarray]):

@@ -94,8 +94,8 @@ def test_sensor_poses_are_the_ego_pose_times_each_mount():
     from b2d_data.format.rig import CAMERAS, LIDAR, RADARS_V0, RADARS_V004, TOP_DOWN
     from b2d_data.format.transform import Transform
     from b2d_data.sim.api import RigConfig
-    from b2d_data.sim.builtin.sensors.synthetic import flat_scene
     from b2d_data.sim.builtin.sensors.suite import SensorSuite
+    from b2d_data.sim.builtin.sensors.synthetic import flat_scene
 
     ego = actor_state(1, "vehicle.lincoln.mkz_2020", 12.5, -3.25, 37.0)
     ego_m = ego.transform.matrix()

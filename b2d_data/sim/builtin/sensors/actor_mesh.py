@@ -437,20 +437,36 @@ def _local_box(actor: ActorState) -> _Box:
     return _Box(bb.location.x, bb.location.y, bb.location.z, max(e.x, 0.05), max(e.y, 0.05), max(e.z, 0.05))
 
 
+@dataclass
+class _Placed:
+    """An actor's world mesh of the last tick, with the shape and the transform matrix (bytes) it came from."""
+
+    shape: TriangleMesh
+    matrix: bytes
+    world: TriangleMesh
+
+
 class ActorMeshBuilder:
     """Builds the dynamic mesh of a snapshot, caching each vehicle/prop shape in its actor frame."""
 
     def __init__(self) -> None:
         self._cache: dict[tuple, TriangleMesh] = {}
+        # By actor id. An actor that keeps its shape and its pose (parked, queued, waiting at a light) keeps its
+        # world mesh: moving the shape again would give the same arrays.
+        self._placed: dict[int, _Placed] = {}
 
     def local_mesh(self, actor: ActorState, night: bool, timestamp: float) -> TriangleMesh:
         """The actor's shape in its own frame (instance id already set)."""
+        return self._shape(actor, night, timestamp).with_instance(actor.id)
+
+    def _shape(self, actor: ActorState, night: bool, timestamp: float) -> TriangleMesh:
+        """The actor's shape in its own frame, instance ids unset (vehicles and props: the cached mesh itself)."""
         b = _local_box(actor)
         tag = actor_tag(actor)
         if actor.kind is ActorKind.WALKER:
             # Walk cycle: ~1.8 rad per metre walked, from the speed and the game time.
             phase = timestamp * actor.speed() * 1.8 + (actor.id % 17)
-            return merge(_walker(b, actor.id, phase)).with_instance(actor.id)
+            return merge(_walker(b, actor.id, phase))
         if is_vehicle_shaped(actor):
             kind = vehicle_class(actor)
             flags = light_flags(actor, night, timestamp) if actor.kind is ActorKind.VEHICLE else LightFlags()
@@ -466,7 +482,7 @@ class ActorMeshBuilder:
             if len(self._cache) > 4096:
                 self._cache.clear()
             self._cache[key] = mesh
-        return mesh.with_instance(actor.id)
+        return mesh
 
     def _vehicle_parts(self, actor: ActorState, b: _Box, tag: int, kind: str, flags: LightFlags) -> list[TriangleMesh]:
         paint = paint_of(actor)
@@ -496,8 +512,19 @@ class ActorMeshBuilder:
         """
         items = actors.values() if isinstance(actors, Mapping) else actors
         out = []
+        placed: dict[int, _Placed] = {}
         for actor in items:
             if actor.kind in (ActorKind.TRAFFIC_LIGHT, ActorKind.TRAFFIC_SIGN):
                 continue
-            out.append((actor.id, self.local_mesh(actor, night, timestamp).transformed(actor.transform.matrix())))
+            shape = self._shape(actor, night, timestamp)
+            matrix = actor.transform.matrix()
+            key = matrix.tobytes()
+            last = self._placed.get(actor.id)
+            if last is not None and last.shape is shape and last.matrix == key:
+                world = last.world
+            else:
+                world = shape.with_instance(actor.id).transformed(matrix)
+            placed[actor.id] = _Placed(shape, key, world)
+            out.append((actor.id, world))
+        self._placed = placed
         return out

@@ -49,10 +49,21 @@ def _morton(points: np.ndarray) -> np.ndarray:
     lo, hi = points.min(axis=0), points.max(axis=0)
     cells = ((points - lo) / np.maximum(hi - lo, 1e-9) * 1023.0).astype(np.uint32)
     code = np.zeros(len(points), np.uint32)
-    for bit in range(10):
-        for axis in range(3):
-            code |= ((cells[:, axis] >> np.uint32(bit)) & np.uint32(1)) << np.uint32(3 * bit + axis)
+    for axis in range(3):
+        code |= _spread(cells[:, axis]) << np.uint32(axis)
     return code
+
+
+#: (shift, mask) steps moving bit b of a 10-bit number to bit 3·b (the "part 1 by 2" of Morton codes).
+_SPREAD = ((16, 0x030000FF), (8, 0x0300F00F), (4, 0x030C30C3), (2, 0x09249249))
+
+
+def _spread(x: np.ndarray) -> np.ndarray:
+    """The low 10 bits of uint32 ``x`` spread two zero bits apart (four shifts, not a pass per bit)."""
+    x = x & np.uint32(0x3FF)
+    for shift, mask in _SPREAD:
+        x = (x | (x << np.uint32(shift))) & np.uint32(mask)
+    return x
 
 
 def _runs(keys: np.ndarray, limit: int) -> np.ndarray:

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from b2d_data.format.rig import NOISE, NoiseSpec
+from b2d_data.format.rig import NOISE, Mount, NoiseSpec
 from b2d_data.format.transform import Location, Transform
 from b2d_data.sim.api import ActorState, GnssReading, ImuReading
 
@@ -133,12 +133,18 @@ class ImuGnss:
 
     noise: NoiseSpec = NOISE
     seed: int = 0
+    _mount: tuple[Mount, np.ndarray] | None = field(default=None, init=False, repr=False, compare=False)
 
     def sensor_pose(self, ego: ActorState) -> np.ndarray:
         """IMU / GNSS sensor → world 4×4 (both share the mount)."""
+        return ego.transform.matrix() @ self._mount_matrix()
+
+    def _mount_matrix(self) -> np.ndarray:
+        """Sensor → ego 4×4 of the mount, worked out once per mount (the noise spec is frozen)."""
         m = self.noise.imu_mount
-        mount = Transform(Location(m.x, m.y, m.z)).matrix()
-        return ego.transform.matrix() @ mount
+        if self._mount is None or self._mount[0] != m:
+            self._mount = (m, Transform(Location(m.x, m.y, m.z)).matrix())
+        return self._mount[1]
 
     def read(
         self, ego: ActorState, frame: int, geolocate: Callable[[Location], tuple[float, float, float]]

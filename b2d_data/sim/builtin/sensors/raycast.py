@@ -33,16 +33,55 @@ class RayHits:
     actor_ids: np.ndarray
 
 
-class _Layer:
-    """One Embree scene plus the per-triangle labels of the mesh it was built from."""
+@dataclass
+class SharedVertices:
+    """A triangle soup's vertices with each distinct one kept once: ``first`` (V,) the flat vertex row of each,
+    ``inverse`` (3T,) the distinct vertex of every flat row, ``triangles`` (T,) each triangle's three indices as a
+    tuple (the form embreex's indexed path reads fastest)."""
 
-    def __init__(self, mesh: TriangleMesh) -> None:
+    first: np.ndarray
+    inverse: np.ndarray
+    triangles: np.ndarray
+
+    def holds(self, bits: np.ndarray) -> bool:
+        """Whether every flat row of ``bits`` ((3T, 3) uint32 views of the vertices) equals its distinct vertex."""
+        return len(self.inverse) == len(bits) and bool((bits[self.first][self.inverse] == bits).all())
+
+
+def shared_vertices(bits: np.ndarray) -> SharedVertices | None:
+    """The distinct rows of (3T, 3) uint32 vertex bits; None when two distinct rows share a hash key (never seen)."""
+    wide = bits.astype(np.uint64)
+    key = (wide[:, 0] << np.uint64(32) | wide[:, 1]) ^ (wide[:, 2] * np.uint64(0x9E3779B97F4A7C15))
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    rows = inverse.reshape(-1, 3)
+    triangles = np.fromiter(zip(rows[:, 0].tolist(), rows[:, 1].tolist(), rows[:, 2].tolist()), object, len(rows))
+    shared = SharedVertices(first, inverse.reshape(-1), triangles)
+    return shared if shared.holds(bits) else None
+
+
+class _Layer:
+    """One Embree scene plus the per-triangle labels of the mesh it was built from.
+
+    With ``shared`` (the dynamic layer) Embree gets each distinct vertex once and an index per triangle corner:
+    embreex copies its input element by element through Python, ~90 ns per coordinate, and the actors' closed
+    shapes repeat each corner about five times. Every triangle keeps the exact vertex bits of the flat soup, so
+    Embree builds and hits the same triangles.
+    """
+
+    def __init__(self, mesh: TriangleMesh, shared: SharedVertices | None = None) -> None:
         self.size = len(mesh)
         self.tags = mesh.tags.copy()
         self.actor_ids = mesh.instance_ids.astype(np.int32)
         self.scene = rtcore_scene.EmbreeScene(_device())
-        if self.size:
-            mesh_construction.TriangleMesh(self.scene, np.ascontiguousarray(mesh.vertices, dtype=np.float32))
+        if not self.size:
+            return
+        vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
+        if shared is None:
+            mesh_construction.TriangleMesh(self.scene, vertices)
+        else:
+            # Python floats hold float32 values exactly; embreex reads them back without a numpy scalar each.
+            distinct = vertices.reshape(-1, 3)[shared.first].astype(object)
+            mesh_construction.TriangleMesh(self.scene, distinct, shared.triangles)
 
 
 class RayCaster:
@@ -51,6 +90,9 @@ class RayCaster:
     def __init__(self, static: TriangleMesh | None = None) -> None:
         self._static = _Layer(static if static is not None else TriangleMesh.empty())
         self._dynamic = _Layer(TriangleMesh.empty())
+        # The last dynamic mesh's distinct vertices: from tick to tick the same actors repeat the same corners, so
+        # the pattern is checked against the new vertices (a gather) and worked out afresh only when it fails.
+        self._shared: SharedVertices | None = None
 
     def set_static(self, mesh: TriangleMesh) -> None:
         """Build the static scene (once per map)."""
@@ -58,7 +100,10 @@ class RayCaster:
 
     def set_dynamic(self, mesh: TriangleMesh) -> None:
         """Rebuild the dynamic scene (once per tick)."""
-        self._dynamic = _Layer(mesh)
+        bits = np.ascontiguousarray(mesh.vertices, dtype=np.float32).reshape(-1, 3).view(np.uint32)
+        if self._shared is None or not self._shared.holds(bits):
+            self._shared = shared_vertices(bits) if len(bits) else None
+        self._dynamic = _Layer(mesh, self._shared)
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, max_range: float) -> RayHits:
         """Cast unit-direction rays; the nearest hit within ``max_range`` of either scene wins."""

@@ -330,8 +330,11 @@ def _batch_mesh(mesh: TriangleMesh, tile: float | None) -> tuple[TriangleMesh, d
     key, mat = key[order], mat[order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     ends = np.r_[starts[1:], len(key)]
-    lo = np.minimum.reduceat(mesh.vertices.min(axis=1), starts, axis=0)
-    hi = np.maximum.reduceat(mesh.vertices.max(axis=1), starts, axis=0)
+    # Element-wise over the three vertices: a reduction over the short middle axis costs several times more (the
+    # same minimum, taken in the same order).
+    v = mesh.vertices
+    lo = np.minimum.reduceat(np.minimum(np.minimum(v[:, 0], v[:, 1]), v[:, 2]), starts, axis=0)
+    hi = np.maximum.reduceat(np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2]), starts, axis=0)
     batches: dict[int, _Tiles] = {}
     for m in np.unique(mat[starts]).tolist():
         sel = mat[starts] == m

@@ -87,9 +87,10 @@ class TriangleMesh:
         m = np.asarray(matrix, dtype=np.float64)
         rot = m[:3, :3].astype(np.float32)
         trans = m[:3, 3].astype(np.float32)
+        # The products are float32 already (float32 operands): no second copy.
         return TriangleMesh(
-            (self.vertices @ rot.T + trans).astype(np.float32),
-            (self.normals @ rot.T).astype(np.float32),
+            (self.vertices @ rot.T + trans).astype(np.float32, copy=False),
+            (self.normals @ rot.T).astype(np.float32, copy=False),
             self.colors,
             self.tags,
             self.instance_ids,

@@ -103,6 +103,29 @@ class TickScene:
     lamps: TriangleMesh
     light: Lighting
     vehicle_lights: SpotLights = SpotLights.empty()
+    #: The renderer's dynamic mesh (every actor part, then the lamps) when ``_prepare`` merged it already.
+    dynamic: TriangleMesh | None = None
+
+
+def _rows_of(parts: list[tuple[int, TriangleMesh]], actor_id: int) -> slice:
+    """The triangle rows of ``actor_id``'s part in the merge of ``parts`` (empty when it has none)."""
+    start = 0
+    for i, mesh in parts:
+        if i == actor_id:
+            return slice(start, start + len(mesh))
+        start += len(mesh)
+    return slice(start, start)
+
+
+def _without_rows(mesh: TriangleMesh, rows: slice) -> TriangleMesh:
+    """``mesh`` less a run of triangle rows: the merge of the parts around them, without merging them again."""
+    if rows.start == rows.stop:
+        return mesh
+    cut = [
+        np.concatenate([a[: rows.start], a[rows.stop :]])
+        for a in (mesh.vertices, mesh.normals, mesh.colors, mesh.tags, mesh.instance_ids, mesh.materials)
+    ]
+    return TriangleMesh(*cut)
 
 
 @dataclass
@@ -158,6 +181,7 @@ class SensorScene:
         self.fixtures: list[Fixture] = []
         self._fixture_key: tuple | None = None
         self._lamp_cache: dict[tuple[int, TrafficLightState], TriangleMesh] = {}
+        self._lamps_merged: tuple[tuple, TriangleMesh] | None = None  # the last states' key and merged lamps
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="b2d-rays")
         self._set_static(scene.mesh)
 
@@ -174,21 +198,28 @@ class SensorScene:
         self._fixture_key = key
         self.fixtures = fixtures_of_snapshot(snapshot)
         self._lamp_cache.clear()
+        self._lamps_merged = None
         self._set_static(merge([self.scene.mesh, fixture_static_mesh(self.fixtures)]))
 
     def _lamps(self, states: dict[int, TrafficLightState]) -> TriangleMesh:
         """Lamp meshes of every light in its current state (each (light, state) meshed once)."""
+        keys = tuple(
+            (f.instance_id, states.get(f.instance_id, TrafficLightState.OFF))
+            for f in self.fixtures
+            if f.kind == "traffic_light"
+        )
+        # The lights change state every few seconds: most ticks merge the same lamps as the last one.
+        if self._lamps_merged is not None and self._lamps_merged[0] == keys:
+            return self._lamps_merged[1]
         parts = []
-        for f in self.fixtures:
-            if f.kind != "traffic_light":
-                continue
-            state = states.get(f.instance_id, TrafficLightState.OFF)
-            key = (f.instance_id, state)
+        for f, key in zip((f for f in self.fixtures if f.kind == "traffic_light"), keys):
             mesh = self._lamp_cache.get(key)
             if mesh is None:
-                mesh = self._lamp_cache[key] = lamp_mesh([f], {f.instance_id: state})
+                mesh = self._lamp_cache[key] = lamp_mesh([f], {f.instance_id: key[1]})
             parts.append(mesh)
-        return merge(parts)
+        merged = merge(parts)
+        self._lamps_merged = (keys, merged)
+        return merged
 
     def _prepare(self, snapshot: Snapshot, ego_id: int) -> TickScene:
         """Mesh the tick's actors and lamps and hand them to the ray caster; the renderer gets them in
@@ -203,14 +234,18 @@ class SensorScene:
         lit = light.vehicle_lights_on
         actor_parts = self.actor_meshes.build_parts(snapshot.actors, lit, snapshot.timestamp)
         lamps = self._lamps({i: t.state for i, t in snapshot.traffic_lights.items()})
+        dynamic = merge([m for _, m in actor_parts] + [lamps]) if self.renderer is not None else None
         if self.caster is not None:
             # The LiDAR and radars see everything but the ego (their rays start inside or next to its body).
-            self.caster.set_dynamic(merge([m for i, m in actor_parts if i != ego_id] + [lamps]))
+            if dynamic is None:
+                self.caster.set_dynamic(merge([m for i, m in actor_parts if i != ego_id] + [lamps]))
+            else:
+                self.caster.set_dynamic(_without_rows(dynamic, _rows_of(actor_parts, ego_id)))
         spots = SpotLights.empty()
         if self.renderer is not None and light.beams > 0.0:
             # The lamps the actor meshes show lit light the scene (the same rule: light_flags).
             spots = vehicle_lights(snapshot.actors.values(), ego, lit, snapshot.timestamp)
-        return TickScene(snapshot, ego, actor_parts, lamps, light, spots)
+        return TickScene(snapshot, ego, actor_parts, lamps, light, spots, dynamic)
 
     def _render_views(self, tick: TickScene, batches: list[list[CameraView]]) -> list[CameraFrame]:
         """Render every view of ``batches``, in order.
@@ -221,7 +256,8 @@ class SensorScene:
         machine).
         """
         assert self.renderer is not None
-        self.renderer.set_dynamic(merge([m for _, m in tick.actor_parts] + [tick.lamps]))
+        dynamic = tick.dynamic if tick.dynamic is not None else merge([m for _, m in tick.actor_parts] + [tick.lamps])
+        self.renderer.set_dynamic(dynamic)
         # The sun's shadows are drawn around the ego, once per tick whichever batch comes first.
         lights, centre = tick.vehicle_lights, tick.ego.transform.location.to_array()
         if self.renderer.hardware:
@@ -326,16 +362,17 @@ class SensorSuite(SensorScene):
         self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
         self.imu = ImuGnss(NOISE, seed)
         self.timings = CaptureTimings()
+        # Sensor → ego 4×4 of every rig sensor, in sensor_poses' order: fixed, so worked out once.
+        radar_specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
+        self._mounts = {c.sensor_id: c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
+        self._mounts.update({r.sensor_id: r.mount.matrix() for r in radar_specs})
+        self._mounts[LIDAR.sensor_id] = LIDAR.mount.matrix()
 
     # ------------------------------------------------------------------------------------------ poses
     def sensor_poses(self, ego: ActorState) -> dict[str, np.ndarray]:
         """Sensor → world 4×4 of every rig sensor, keyed by sensor id (CAM_*, TOP_DOWN, RADAR_*, LIDAR_TOP)."""
         ego_m = ego.transform.matrix()
-        radars = RADARS_V004 if self.config.radar_v004_mounts else RADARS_V0
-        out = {c.sensor_id: ego_m @ c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
-        out.update({r.sensor_id: ego_m @ r.mount.matrix() for r in radars})
-        out[LIDAR.sensor_id] = ego_m @ LIDAR.mount.matrix()
-        return out
+        return {sensor_id: ego_m @ mount for sensor_id, mount in self._mounts.items()}
 
     # ------------------------------------------------------------------------------------------ capture
     def _cast_rays(self, tick: TickScene, poses: dict[str, np.ndarray]):

@@ -13,7 +13,7 @@ behind that vehicle as the lamp sees it, so a car does not light the road throug
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,9 +71,10 @@ class SpotLights:
         return SpotLights(self.position[keep], self.direction[keep], self.color[keep], own, blocker, distance)
 
 
-def low_beam(actor: ActorState) -> tuple[np.ndarray, np.ndarray]:
-    """World position (middle of the front face, at the head lamps' height) and direction of a vehicle's low beam."""
-    m = actor.transform.matrix()
+def low_beam(actor: ActorState, matrix: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """World position (middle of the front face, at the head lamps' height) and direction of a vehicle's low beam
+    (``matrix``: the actor's transform matrix when the caller has it)."""
+    m = actor.transform.matrix() if matrix is None else matrix
     bb = actor.bounding_box
     c, e = bb.location, bb.extent
     # Head lamps as actor_mesh draws them on cars: 42 % of the box height up its front face.
@@ -87,13 +88,15 @@ def vehicle_lights(
     """The lit low beams (``actor_mesh.light_flags``) of the ego, first, and of the vehicles nearest to it."""
     centre = ego.transform.location.to_array()
     vehicles = [a for a in actors if a.kind is ActorKind.VEHICLE and a.id != ego.id]
+    # Each vehicle's matrix serves its lamp and its blocking box.
+    matrices = {a.id: a.transform.matrix() for a in (ego, *vehicles)}
     own = light_flags(ego, night, timestamp).beam
-    beams = [(ego, *low_beam(ego))] if own else []
+    beams = [(ego, *low_beam(ego, matrices[ego.id]))] if own else []
     others = []
     for actor in vehicles:
         if not light_flags(actor, night, timestamp).beam:
             continue
-        pos, direction = low_beam(actor)
+        pos, direction = low_beam(actor, matrices[actor.id])
         distance = float(np.linalg.norm(pos - centre))
         if distance <= LOW_BEAM_RANGE:
             others.append((distance, actor.id, actor, pos, direction))
@@ -104,7 +107,7 @@ def vehicle_lights(
         return SpotLights.empty()
     position = np.array([b[1] for b in beams], np.float64)
     direction = np.array([b[2] for b in beams], np.float64)
-    blocker, block_distance = beam_blockers(position, direction, [b[0].id for b in beams], [ego, *vehicles])
+    blocker, block_distance = beam_blockers(position, direction, [b[0].id for b in beams], [ego, *vehicles], matrices)
     return SpotLights(
         position=position,
         direction=direction,
@@ -116,25 +119,32 @@ def vehicle_lights(
 
 
 def beam_blockers(
-    position: np.ndarray, direction: np.ndarray, owners: list[int], vehicles: Iterable[ActorState]
+    position: np.ndarray,
+    direction: np.ndarray,
+    owners: list[int],
+    vehicles: Iterable[ActorState],
+    matrices: Mapping[int, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """For each beam, the nearest vehicle (not its owner) standing in it, as a cone seen from the lamp.
 
     Returns (N, 4) unit directions to the vehicles' centres with the cosine of the half angle their bounding sphere
     (half width and half height) covers, and (N,) the distance of their near face along that direction plus 0.3 m
     (their lit rear stays lit); :data:`NO_BLOCKER` and a half angle of zero where no vehicle stands in the beam.
+    ``matrices``: the vehicles' transform matrices by actor id, when the caller has them.
     """
     n = len(position)
     blocker = np.tile(np.array([0.0, 0.0, 1.0, 1.0]), (n, 1))
     distance = np.full(n, NO_BLOCKER)
     boxes = []
     for v in vehicles:
-        m = v.transform.matrix()
+        m = v.transform.matrix() if matrices is None else matrices[v.id]
         bb = v.bounding_box
         boxes.append((v.id, m[:3, :3] @ bb.location.to_array() + m[:3, 3], m[:3, 0], bb.extent))
+    candidates = _maybe_in_beam(position, direction, boxes)
     for i in range(n):
         best = NO_BLOCKER
-        for vid, centre, forward, e in boxes:
+        for k in candidates[i]:
+            vid, centre, forward, e = boxes[k]
             if vid == owners[i]:
                 continue
             offset = centre - position[i]
@@ -145,7 +155,8 @@ def beam_blockers(
             radius = float(np.hypot(e.y, e.z))
             half = math.asin(min(1.0, radius / d))
             # In the beam: its cone (cos 0.72 at the edge, ±44°) and the vehicle's cone overlap.
-            if math.acos(float(np.clip(towards @ direction[i], -1.0, 1.0))) > math.acos(0.72) + half:
+            # min/max clip as np.clip did (a NaN, which np.clip keeps, ends as no blocker either way).
+            if math.acos(min(1.0, max(-1.0, float(towards @ direction[i])))) > math.acos(0.72) + half:
                 continue
             # The near face: the box's half depth along the line of sight.
             c, s = abs(float(forward[:2] @ towards[:2])), math.sqrt(max(0.0, 1.0 - float(forward[:2] @ towards[:2]) ** 2))
@@ -155,6 +166,34 @@ def beam_blockers(
                 blocker[i] = (*towards, math.cos(half))
                 distance[i] = max(0.0, near) + 0.3
     return blocker, distance
+
+
+#: Slack of :func:`_maybe_in_beam`'s tests (m and rad): far above the rounding of its arithmetic (near a cosine of ±1
+#: an angle's rounding grows to ~1e-8 rad), far below any real distance or angle.
+_PRUNE_SLACK = 1e-6
+
+
+def _maybe_in_beam(position: np.ndarray, direction: np.ndarray, boxes: list) -> list[np.ndarray]:
+    """For each beam, the boxes (indices, in order) that might stand in it: all but those the range or the cone
+    test of :func:`beam_blockers` rejects with room to spare, worked out for every pair at once.
+
+    The exact tests then run on these pairs alone, as before, so the blockers found do not change; about half the
+    vehicles of a frame are beyond the range of a given lamp and most of the rest outside its cone.
+    """
+    if not boxes:
+        return [np.zeros(0, np.int64)] * len(position)
+    centres = np.array([b[1] for b in boxes], np.float64)
+    radius = np.array([math.hypot(b[3].y, b[3].z) for b in boxes], np.float64)
+    offset = centres[None, :, :] - np.asarray(position, np.float64)[:, None, :]
+    d = np.sqrt((offset * offset).sum(axis=2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = (offset * np.asarray(direction, np.float64)[:, None, :]).sum(axis=2) / d
+        half = np.arcsin(np.minimum(1.0, radius[None, :] / d))
+        angle = np.arccos(np.clip(cos, -1.0, 1.0))
+    out = (d > BLOCKER_RANGE + _PRUNE_SLACK) | (angle > math.acos(0.72) + half + _PRUNE_SLACK)
+    # d below the 1 mm the exact test skips: the cone test means nothing there, keep the pair for the exact test.
+    keep = ~out | (d < 1e-3 + _PRUNE_SLACK)
+    return [np.flatnonzero(row) for row in keep]
 
 
 def beams_in_view(lights: SpotLights, viewproj: np.ndarray) -> SpotLights:

@@ -49,3 +49,24 @@ def test_a_material_with_nothing_visible_gets_no_runs():
     assert runs[2].shape == (0, 2)
     # Only x 100–101 → 17 … 17.2 is right of the view too: nothing of material 1 either.
     assert runs[1].shape == (0, 2)
+
+
+def test_batch_boxes_are_the_minimum_and_maximum_of_each_batch():
+    # _batch_mesh's boxes: per (material, tile) batch, the corner-wise minimum and maximum of its triangles' vertices
+    # (worked out here with a reduction over the vertex axis), signed zeros included.
+    from b2d_data.sim.builtin.sensors.renderer import _batch_mesh
+    from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh
+
+    rng = np.random.default_rng(2)
+    tris = rng.normal(0.0, 30.0, (500, 3, 3)).astype(np.float32)
+    tris[::7, 1, 2] = -0.0
+    tris[::7, 2, 2] = 0.0
+    mesh = TriangleMesh.from_triangles(tris, (90, 90, 90), 1)
+    mesh.materials[:] = rng.integers(0, 7, len(mesh))
+    for tile in (None, 16.0):
+        batched, batches = _batch_mesh(mesh, tile)
+        assert sum(len(b.first) for b in batches.values()) > (1 if tile is None else 7)
+        for b in batches.values():
+            for first, count, lo, hi in zip(b.first, b.count, b.lo, b.hi):
+                rows = batched.vertices[first // 3 : (first + count) // 3].reshape(-1, 3)
+                assert lo.tobytes() == rows.min(axis=0).tobytes() and hi.tobytes() == rows.max(axis=0).tobytes()

@@ -86,6 +86,23 @@ def gpu():
     caster.close()
 
 
+def test_morton_codes_interleave_the_cell_bits():
+    # Bit b of the x, y and z cells goes to bit 3·b, 3·b + 1 and 3·b + 2 of the code: by hand for single bits, and
+    # bit by bit for a few thousand random cells (the points span exactly 0..1023 in each axis).
+    from b2d_data.sim.builtin.sensors.bvh import _morton
+
+    rng = np.random.default_rng(4)
+    cells = np.vstack([np.zeros((1, 3)), np.full((1, 3), 1023.0), rng.integers(0, 1024, (4000, 3))])
+    points = np.vstack([cells, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [512.0, 0.0, 0.0]]])
+    code = _morton(points)
+    assert code[1] == (1 << 30) - 1 and code[-4:].tolist() == [1, 2, 4, 1 << 27]
+    want = np.zeros(len(points), np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            want |= ((points[:, axis].astype(np.uint64) >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    np.testing.assert_array_equal(code, want)
+
+
 def test_hand_scene(gpu):
     # The scene of test_raycast: ground z = 0 and a wall at x = 20 (static), an actor wall at x = 10 (id 7, tag 14)
     # and an actor behind the static wall (id 8). Expected distances worked out by hand there.

@@ -84,3 +84,34 @@ def test_gnss_round_trip_through_the_map_projection():
     back = town.geolocation_to_location(gnss.latitude, gnss.longitude, gnss.altitude)
     np.testing.assert_allclose(back.to_array(), sensor, atol=1e-6)
     assert math.isclose(alt, 2.0)
+
+
+def test_sensor_poses_are_the_ego_pose_times_each_mount():
+    # The mounts' matrices are worked out once per rig (IMU: once per mount); each pose must still be the ego's
+    # matrix times the mount's, also for the v0.0.4 radar mounts and after the IMU's mount changed.
+    from dataclasses import replace
+
+    from b2d_data.format.rig import CAMERAS, LIDAR, RADARS_V0, RADARS_V004, TOP_DOWN
+    from b2d_data.format.transform import Transform
+    from b2d_data.sim.api import RigConfig
+    from b2d_data.sim.builtin.sensors.suite import SensorSuite
+    from b2d_data.sim.builtin.sensors.synthetic import flat_scene
+
+    ego = actor_state(1, "vehicle.lincoln.mkz_2020", 12.5, -3.25, 37.0)
+    ego_m = ego.transform.matrix()
+    for v004, radars in ((False, RADARS_V0), (True, RADARS_V004)):
+        config = RigConfig(cameras=(), lidar=False, radar=False, radar_v004_mounts=v004)
+        suite = SensorSuite.from_scene(flat_scene(20.0), config)
+        try:
+            poses = suite.sensor_poses(ego)
+        finally:
+            suite.close()
+        specs = [*CAMERAS, TOP_DOWN, *radars, LIDAR]
+        assert list(poses) == [s.sensor_id for s in specs]
+        for spec in specs:
+            assert poses[spec.sensor_id].tobytes() == (ego_m @ spec.mount.matrix()).tobytes()
+    imu = ImuGnss(NO_NOISE)
+    for mount in (NO_NOISE.imu_mount, replace(NO_NOISE.imu_mount, x=0.5, z=1.25)):
+        imu.noise = replace(NO_NOISE, imu_mount=mount)
+        want = ego_m @ Transform(Location(mount.x, mount.y, mount.z)).matrix()
+        assert imu.sensor_pose(ego).tobytes() == want.tobytes()

@@ -333,3 +333,63 @@ def test_depth_and_labels_do_not_depend_on_the_lighting():
                                               err_msg=f"{name} {field}")  # fmt: skip
     # …while the colours do differ (the weathers were not all drawn alike).
     assert np.abs(first["front"].rgb.astype(int) - frames[2]["front"].rgb.astype(int)).mean() > 10
+
+
+def _blockers_every_pair(position, direction, owners, vehicles):
+    """beam_blockers' tests on every (beam, vehicle) pair, none skipped beforehand (the reference)."""
+    blocker = np.tile(np.array([0.0, 0.0, 1.0, 1.0]), (len(position), 1))
+    distance = np.full(len(position), NO_BLOCKER)
+    for i in range(len(position)):
+        best = NO_BLOCKER
+        for v in vehicles:
+            m, e = v.transform.matrix(), v.bounding_box.extent
+            centre, forward = m[:3, :3] @ v.bounding_box.location.to_array() + m[:3, 3], m[:3, 0]
+            if v.id == owners[i]:
+                continue
+            offset = centre - position[i]
+            d = float(np.linalg.norm(offset))
+            if d > 45.0 or d < 1e-3:
+                continue
+            towards = offset / d
+            half = math.asin(min(1.0, float(np.hypot(e.y, e.z)) / d))
+            if math.acos(float(np.clip(towards @ direction[i], -1.0, 1.0))) > math.acos(0.72) + half:
+                continue
+            c = abs(float(forward[:2] @ towards[:2]))
+            near = d - (e.x * c + e.y * math.sqrt(max(0.0, 1.0 - float(forward[:2] @ towards[:2]) ** 2)))
+            if near < best:
+                best = near
+                blocker[i] = (*towards, math.cos(half))
+                distance[i] = max(0.0, near) + 0.3
+    return blocker, distance
+
+
+def test_beam_blockers_skip_only_pairs_that_cannot_block():
+    # beam_blockers tests only the pairs a vectorised pass leaves (vehicle_lights._maybe_in_beam); the blockers
+    # must be those of every pair tested, bit for bit: random traffic, and lamps far from it with one car each just
+    # inside or just outside the range or the edge of the cone.
+    rng = np.random.default_rng(7)
+    vehicles = [
+        actor_state(10 + k, "vehicle.tesla.model3", *rng.uniform(-70.0, 70.0, 2), float(rng.uniform(-180.0, 180.0)))
+        for k in range(60)
+    ]
+    position = list(rng.uniform(-60.0, 60.0, (12, 3)) * [1.0, 1.0, 0.0] + [0.0, 0.0, 0.7])
+    angles = list(rng.uniform(-math.pi, math.pi, 12))
+    owners = [v.id for v in vehicles[:12]]
+    bb = vehicles[0].bounding_box
+    radius = math.hypot(bb.extent.y, bb.extent.z)
+    edge = math.acos(0.72) + math.asin(radius / 20.0)  # the cone's edge for a car's centre 20 m from the lamp
+    # (distance, angle) of the car's box centre from its lamp, which looks along +x from 1000 m further each time.
+    for k, (d, a) in enumerate([(45.0 - 1e-6, 0.0), (45.0 + 1e-6, 0.0), (20.0, edge - 1e-7), (20.0, edge + 1e-7)]):
+        lamp = np.array([1000.0 * (k + 1), 0.0, bb.location.z])
+        x, y = lamp[0] + d * math.cos(a) - bb.location.x, d * math.sin(a) - bb.location.y
+        vehicles.append(actor_state(90 + k, "vehicle.tesla.model3", x, y))
+        position.append(lamp)
+        angles.append(0.0)
+        owners.append(1)
+    direction = np.stack([np.cos(angles), np.sin(angles), np.zeros(len(angles))], axis=1)
+    got = beam_blockers(np.array(position), direction, owners, vehicles)
+    want = _blockers_every_pair(np.array(position), direction, owners, vehicles)
+    assert got[0].tobytes() == want[0].tobytes() and got[1].tobytes() == want[1].tobytes()
+    # The edge cases fall as placed (inside, outside, inside, outside), and most random beams have a blocker.
+    np.testing.assert_array_equal(want[1][-4:] < NO_BLOCKER, [True, False, True, False])
+    assert (want[1][:12] < NO_BLOCKER).sum() >= 4

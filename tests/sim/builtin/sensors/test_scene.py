@@ -134,3 +134,78 @@ def test_town_scene_is_built_once_per_layout_whatever_the_route_seed():
     suite.town_scene(crossroads_layout())
     suite.town_scene(RoadLayout(layout.lanes[:1]))
     assert suite.town_scene(crossroads_layout()) is first and len(suite._SCENES) == 2
+
+
+class _Recorder:
+    """Stands in for the renderer and the ray caster: keeps every dynamic mesh it is handed."""
+
+    hardware = False
+
+    def __init__(self) -> None:
+        self.meshes = []
+
+    def set_static(self, mesh) -> None:
+        pass
+
+    def set_lightmap(self, *args) -> None:
+        pass
+
+    def set_dynamic(self, mesh) -> None:
+        self.meshes.append(mesh)
+
+    def render(self, *args):
+        return []
+
+    def close(self) -> None:
+        pass
+
+
+def _same_mesh(a, b) -> None:
+    for field in ("vertices", "normals", "colors", "tags", "instance_ids", "materials"):
+        x, y = getattr(a, field), getattr(b, field)
+        assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), field
+
+
+def test_the_tick_meshes_are_the_merged_actor_shapes_and_lamps():
+    # What the renderer and the ray caster get each tick, worked out afresh every tick (a new builder: no shape,
+    # pose or lamp kept from earlier ticks) and merged as the parts list says: every actor then the lamps for the
+    # renderer, the same less the ego for the caster. Over the ticks a car drives, a van stays parked and brakes
+    # (same pose, other tail lamps), a walker walks, the ego drives and brakes, and the light turns green.
+    from dataclasses import replace
+
+    from b2d_data.sim.api import VehicleControl
+    from b2d_data.sim.builtin.sensors import suite
+    from b2d_data.sim.builtin.sensors.map_mesh import StaticScene
+    from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh, merge
+    from b2d_data.sim.builtin.sensors.synthetic import snapshot_of
+
+    head = Transform(Location(10.0, 5.0, 3.0), Rotation(yaw=90.0))
+    light = TrafficLightInfo(
+        id=900, transform=Transform(Location(10.0, 5.0, 0.0), Rotation(yaw=0.0)), state=TrafficLightState.RED,
+        trigger_volume=BoundingBox(Location(0.0, 8.0, 1.0), Location(2.0, 1.5, 1.0)), stop_waypoints=(),
+        affected_lane_waypoints=(), group_id=0, opendrive_id="1",
+        level_bbox=BoundingBox(head.location, Location(0.25, 0.3, 0.6), head.rotation), level_bbox_transform=head,
+    )  # fmt: skip
+    scene = suite.SensorScene()
+    empty = StaticScene(TriangleMesh.empty(), np.zeros((0, 3)), np.zeros(3), np.ones(3))
+    renderer, caster = _Recorder(), _Recorder()
+    scene._setup_scene(empty, renderer, rays=False)  # type: ignore[arg-type]
+    scene.caster = caster  # type: ignore[assignment]
+    for k in range(6):
+        actors = [
+            actor_state(2, "vehicle.tesla.model3", 8.0 + 0.7 * k, 1.5, 2.0 * k),
+            actor_state(1, "vehicle.lincoln.mkz_2020", -5.0 + 0.5 * k, -1.5, 0.0, role_name="hero",
+                        control=VehicleControl(brake=1.0 if k >= 3 else 0.0)),
+            actor_state(3, "vehicle.mercedes.sprinter", -9.0, -6.0, 30.0,
+                        control=VehicleControl(brake=1.0 if k >= 2 else 0.0)),
+            actor_state(4, "walker.pedestrian.0001", 3.0, -6.0 + 0.12 * k, 90.0, velocity=(0.0, 1.2, 0.0)),
+        ]  # fmt: skip
+        state = TrafficLightState.RED if k < 4 else TrafficLightState.GREEN
+        snap = snapshot_of(actors, frame=k, timestamp=0.1 * k, traffic_lights={900: replace(light, state=state)})
+        tick = scene._prepare(snap, 1)
+        scene._render_views(tick, [[]])
+        parts = ActorMeshBuilder().build_parts(snap.actors, False, snap.timestamp)
+        lamps = lamp_mesh([fixture_of_light(snap.traffic_lights[900])], {900: state})
+        _same_mesh(renderer.meshes[-1], merge([m for _, m in parts] + [lamps]))
+        _same_mesh(caster.meshes[-1], merge([m for i, m in parts if i != 1] + [lamps]))
+    assert len(renderer.meshes) == len(caster.meshes) == 6

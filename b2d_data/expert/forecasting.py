@@ -64,19 +64,21 @@ def forecast_vehicles(config: ExpertConfig, vehicles: list[ActorState], frames: 
     steer = np.array([c.steer for c in controls])
     throttle = np.array([c.throttle for c in controls])
     brake = np.array([c.brake for c in controls])
-    xs, ys, yaws, speeds = (np.empty((frames, n)) for _ in range(4))
     braking = brake >= config.other_vehicle_brake_threshold
     accel = np.where(braking, config.other_brake_acceleration, throttle * config.other_throttle_acceleration)
     beta = slip_angle(config, steer)  # constant: the control is held over the horizon
     dt = config.dt
     turn = np.sin(beta) / config.rear_wheel_base * dt
-    for i in range(frames):
-        heading = yaw + beta
-        x = x + speed * np.cos(heading) * dt
-        y = y + speed * np.sin(heading) * dt
-        yaw = yaw + speed * turn
-        speed = np.maximum(0.0, speed + dt * accel)
-        xs[i], ys[i], yaws[i], speeds[i] = x, y, yaw, speed
+    # Euler steps, frame i + 1 from frame i: speed' = max(0, speed + dt·accel), yaw' = yaw + speed·turn and the
+    # position moves with the speed and heading before the step. Each is a running sum (np.add.accumulate adds in
+    # order, as the step-by-step loop did); the speed, never negative, is clamped for good once its sum goes below
+    # 0 (accel is constant), so clamping the running sum gives the same speeds.
+    speeds = np.maximum(0.0, _running_sum(speed, np.broadcast_to(dt * accel, (frames, n))))  # frames 0..F
+    yaws = _running_sum(yaw, speeds[:-1] * turn)
+    heading = yaws[:-1] + beta
+    xs = _running_sum(x, speeds[:-1] * np.cos(heading) * dt)[1:]
+    ys = _running_sum(y, speeds[:-1] * np.sin(heading) * dt)[1:]
+    yaws, speeds = yaws[1:], speeds[1:]
     x_factor_fast = (config.other_vehicle_extent_x_factor_lane_change if near_lane_change
                      else config.other_vehicle_extent_x_factor)
     growth = np.arange(frames) / frames
@@ -102,6 +104,14 @@ def forecast_vehicles(config: ExpertConfig, vehicles: list[ActorState], frames: 
     centres[:, :, 1] = ys.T + (s * lx + c * ly)
     centres[:, :, 2] = (z + offset[:, 2])[:, None]
     return [BoxTrack(v.id, centres[k], yaws[k], extents[k]) for k, v in enumerate(vehicles)]
+
+
+def _running_sum(start: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """(F + 1, n): ``start`` then ``start`` plus the first k rows of ``steps`` (F, n), added one row at a time."""
+    out = np.empty((steps.shape[0] + 1,) + start.shape)
+    out[0] = start
+    out[1:] = steps
+    return np.add.accumulate(out, axis=0, out=out)
 
 
 def along_path(config: ExpertConfig, track: BoxTrack, vehicle: ActorState, path: np.ndarray) -> BoxTrack:

@@ -433,6 +433,39 @@ def test_vehicle_forecast_matches_the_one_step_model(make_vehicle):
     assert track.yaws[-1] == pytest.approx(yaw[0])
 
 
+def test_vehicle_forecast_is_the_step_by_step_euler_forecast_to_the_bit(make_vehicle):
+    # the running sums of forecast_vehicles against the Euler steps one frame at a time; a braking car comes to a
+    # stand within the horizon (the speed's clamp at 0), a faster one does not
+    cars = [make_vehicle(1, 1.0, 2.0, yaw=30.0, speed=7.0, control=VehicleControl(throttle=0.7, steer=-0.3)),
+            make_vehicle(2, -4.0, 9.5, yaw=-170.0, speed=3.9, control=VehicleControl(brake=1.0, steer=0.5)),
+            make_vehicle(3, 0.3, -7.0, yaw=95.0, speed=12.5, control=VehicleControl(brake=1.0)),
+            make_vehicle(4, 6.0, 6.0, yaw=-45.0, speed=0.0, control=VehicleControl(throttle=0.4, steer=1.0))]
+    frames = 40
+    tracks = forecast_vehicles(CFG, cars, frames, False)
+    from b2d_data.expert.kinematic_bicycle import slip_angle
+
+    x = np.array([c.location.x for c in cars])
+    y = np.array([c.location.y for c in cars])
+    yaw = np.radians([c.transform.rotation.yaw for c in cars])
+    speed = np.array([c.speed() for c in cars])
+    steer = np.array([c.control.steer for c in cars])
+    accel = np.where(np.array([c.control.brake for c in cars]) >= CFG.other_vehicle_brake_threshold,
+                     CFG.other_brake_acceleration, np.array([c.control.throttle for c in cars])
+                     * CFG.other_throttle_acceleration)
+    beta = slip_angle(CFG, steer)
+    turn = np.sin(beta) / CFG.rear_wheel_base * CFG.dt
+    for i in range(frames):
+        heading = yaw + beta
+        x = x + speed * np.cos(heading) * CFG.dt
+        y = y + speed * np.sin(heading) * CFG.dt
+        yaw = yaw + speed * turn
+        speed = np.maximum(0.0, speed + CFG.dt * accel)
+        for k, track in enumerate(tracks):
+            assert track.centres[i, 0] == x[k] and track.centres[i, 1] == y[k] and track.yaws[i] == yaw[k]
+    assert speed[1] == 0.0 and speed[2] > 0.0  # one braking car reached the clamp, the other did not
+    assert tracks[1].centres[-1, 0] == tracks[1].centres[30, 0] != tracks[1].centres[0, 0]
+
+
 # ------------------------------------------------------------------------------------ scenario handling
 def test_invading_turn_offsets_route_to_the_right(make_route):
     from b2d_data.expert.route_shifting import shift_route_for_invading_turn

@@ -179,15 +179,18 @@ def forecast_ego_boxes(config: ExpertConfig, ego: ActorState, route: DenseRoute,
         yaw = math.radians(ego.transform.rotation.yaw)
         speed = ego.speed()
         throttle = 0.0 if braking else longitudinal.get_throttle_extrapolation(target_speed, speed)
-        steer = lateral.step(route.points[route.index :], speed, np.array([x, y]), yaw)
-        centres, yaws = np.empty((frames, 3)), np.empty(frames)
-        for i in range(frames):
+        steer = lateral.step(route.points[route.index :], speed, (x, y), yaw)
+        poses = []
+        for _ in range(frames):
+            # positions as plain tuples: the loop runs 40-80 times per forecast, an array each time costs more
+            # than the arithmetic it feeds
             x, y, yaw, speed = forecast_ego(config, x, y, yaw, speed, steer, throttle, braking)
-            route.update_index(np.array([x, y]))
-            steer = lateral.step(route.points[route.index :], speed, np.array([x, y]), yaw)
+            route.update_index((x, y))
+            steer = lateral.step(route.points[route.index :], speed, (x, y), yaw)
             throttle = 0.0 if braking else longitudinal.get_throttle_extrapolation(target_speed, speed)
-            centres[i] = (x, y, z)
-            yaws[i] = yaw
+            poses.append((x, y, z, yaw))
+        pose = np.array(poses, dtype=np.float64).reshape(frames, 4)
+        centres, yaws = pose[:, :3], pose[:, 3].copy()
     finally:
         route.load()
         lateral.load_state()

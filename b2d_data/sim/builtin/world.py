@@ -577,10 +577,14 @@ class BuiltinSimulator:
             vel[i] = movers[i].target_velocity
             movers[i].target_velocity = None
         yaw_rate = np.degrees(np.remainder(arr.yaw - yaw0 + math.pi, 2.0 * math.pi) - math.pi) / dt
+        # every vehicle's rows at once; each actor keeps its rows (views), which are only ever replaced, not changed
+        acceleration = (vel - np.array([a.velocity for a in movers])) / dt
+        spin = np.zeros((len(movers), 3))
+        spin[:, 2] = yaw_rate
         for i, a in enumerate(movers):
-            a.acceleration = (vel[i] - a.velocity) / dt
+            a.acceleration = acceleration[i]
             a.velocity = vel[i]
-            a.angular_velocity = np.array([0.0, 0.0, yaw_rate[i]])
+            a.angular_velocity = spin[i]
             a.cached_state = None
 
     def _step_walkers(self, dt: float) -> None:
@@ -719,10 +723,9 @@ class BuiltinSimulator:
             type_id=blueprint.type_id,
             kind=blueprint.kind,
             transform=a.transform(),
-            velocity=Vector3D(float(a.velocity[0]), float(a.velocity[1]), float(a.velocity[2])),
-            angular_velocity=Vector3D(float(a.angular_velocity[0]), float(a.angular_velocity[1]),
-                                      float(a.angular_velocity[2])),
-            acceleration=Vector3D(float(a.acceleration[0]), float(a.acceleration[1]), float(a.acceleration[2])),
+            velocity=Vector3D(*a.velocity.tolist()),
+            angular_velocity=Vector3D(*a.angular_velocity.tolist()),
+            acceleration=Vector3D(*a.acceleration.tolist()),
             bounding_box=a.bbox or blueprint.bounding_box,
             semantic_tags=blueprint.semantic_tags,
             role_name=a.spec.role_name,

@@ -151,7 +151,23 @@ class Map:
         With ``project_to_road=False`` the location must lie inside that lane (within half its width in the
         horizontal plane), else ``None`` — CARLA's rule.
         """
-        loc = _as_location(location)
+        # The ego's lane is asked for several times a tick (route criteria, the expert) with the one Location object
+        # of the snapshot's ego: Locations are frozen and the memo keeps the last one alive, so the same object
+        # means the same answer.
+        memo = self.__dict__.get("_waypoint_memo")
+        if memo is not None and memo[0] is location:
+            key = (project_to_road, lane_type)
+            if key in memo[1]:
+                return memo[1][key]
+        waypoint = self._lookup_waypoint(_as_location(location), project_to_road, lane_type)
+        if isinstance(location, Location):
+            if memo is None or memo[0] is not location:
+                memo = self._waypoint_memo = (location, {})
+            memo[1][(project_to_road, lane_type)] = waypoint
+        return waypoint
+
+    def _lookup_waypoint(self, loc: Location, project_to_road: bool, lane_type: LaneType) -> Waypoint | None:
+        """:meth:`get_waypoint` without the memo."""
         found = self._lane_index.nearest(np.array([loc.x, loc.y, loc.z]), int(lane_type))
         if found is None:
             return None
@@ -452,7 +468,7 @@ class Map:
         if unknown:
             raise KeyError(f"{self.name} has no junction {unknown[0]}")
         clone = copy.copy(self)
-        for cached in ("_signals", "_route_graph"):
+        for cached in ("_signals", "_route_graph", "_waypoint_memo"):
             clone.__dict__.pop(cached, None)
         clone.generated_light_junctions = wanted
         clone.junctions = clone._build_junctions()
@@ -518,6 +534,7 @@ class Map:
         state = dict(self.__dict__)
         state.pop("_signals", None)
         state.pop("_route_graph", None)
+        state.pop("_waypoint_memo", None)
         return state
 
     def __repr__(self) -> str:

@@ -210,3 +210,25 @@ def test_nearest_many_is_nearest_to_the_last_bit(carla_towns, town):
             want = lane_index.nearest(point, int(lane_type))
             assert got == want and (want is None or (got[1].hex(), got[2].hex()) == (want[1].hex(), want[2].hex()))
     assert lane_index.nearest_many(np.zeros((0, 3))) == []
+
+
+def test_get_waypoint_answers_the_same_location_object_once(tiny_map, monkeypatch):
+    # the route criteria and the expert ask for the ego's lane with the snapshot's one Location object each tick;
+    # a pickled map does not carry the answers of the one it came from
+    assert tiny_map.get_waypoint(Location(1.0, 1.0, 0.0)) is not None
+    assert "_waypoint_memo" in tiny_map.__dict__
+    assert "_waypoint_memo" not in pickle.loads(pickle.dumps(tiny_map)).__dict__
+    queries = []
+    nearest = tiny_map._lane_index.nearest
+    monkeypatch.setattr(tiny_map._lane_index, "nearest", lambda *a: queries.append(a) or nearest(*a))
+    ego = Location(10.3, 2.4, 0.0)
+    first = tiny_map.get_waypoint(ego)
+    assert tiny_map.get_waypoint(ego) is first and len(queries) == 1
+    assert tiny_map.get_waypoint(ego, lane_type=LaneType.SIDEWALK).lane_type == LaneType.SIDEWALK  # asked anew
+    assert tiny_map.get_waypoint(ego) is first and len(queries) == 2
+    # another object at the same place is looked up again (and found equal); a tuple is never remembered
+    again = tiny_map.get_waypoint(Location(10.3, 2.4, 0.0))
+    assert again == first and again is not first and len(queries) == 3
+    tiny_map.get_waypoint((10.3, 2.4, 0.0))
+    tiny_map.get_waypoint((10.3, 2.4, 0.0))
+    assert len(queries) == 5

@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import logging
 import math
+import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -151,19 +152,16 @@ class Map:
         With ``project_to_road=False`` the location must lie inside that lane (within half its width in the
         horizontal plane), else ``None`` — CARLA's rule.
         """
-        # The ego's lane is asked for several times a tick (route criteria, the expert) with the one Location object
-        # of the snapshot's ego: Locations are frozen and the memo keeps the last one alive, so the same object
-        # means the same answer.
-        memo = self.__dict__.get("_waypoint_memo")
-        if memo is not None and memo[0] is location:
-            key = (project_to_road, lane_type)
-            if key in memo[1]:
-                return memo[1][key]
-        waypoint = self._lookup_waypoint(_as_location(location), project_to_road, lane_type)
-        if isinstance(location, Location):
-            if memo is None or memo[0] is not location:
-                memo = self._waypoint_memo = (location, {})
-            memo[1][(project_to_road, lane_type)] = waypoint
+        # The ego's lane is asked for several times a tick (route criteria, the expert), and at the same place tick
+        # after tick while it waits: the last answer per argument pair is kept, keyed on the coordinates' bits.
+        loc = _as_location(location)
+        key = _COORDINATE_BITS(loc.x, loc.y, loc.z)
+        memo = self.__dict__.setdefault("_waypoint_memo", {})
+        last = memo.get((project_to_road, lane_type))
+        if last is not None and last[0] == key:
+            return last[1]
+        waypoint = self._lookup_waypoint(loc, project_to_road, lane_type)
+        memo[(project_to_road, lane_type)] = (key, waypoint)
         return waypoint
 
     def _lookup_waypoint(self, loc: Location, project_to_road: bool, lane_type: LaneType) -> Waypoint | None:
@@ -539,6 +537,10 @@ class Map:
 
     def __repr__(self) -> str:
         return f"Map({self.name!r}, roads={len(self.data.roads)}, lanes={len(self._segments)})"
+
+
+#: The exact bits of a location (−0.0 and 0.0 differ), the key of :meth:`Map.get_waypoint`'s memo.
+_COORDINATE_BITS = struct.Struct("<3d").pack
 
 
 def _concat(dst: list, src: list) -> list:

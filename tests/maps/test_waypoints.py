@@ -212,8 +212,8 @@ def test_nearest_many_is_nearest_to_the_last_bit(carla_towns, town):
     assert lane_index.nearest_many(np.zeros((0, 3))) == []
 
 
-def test_get_waypoint_answers_the_same_location_object_once(tiny_map, monkeypatch):
-    # the route criteria and the expert ask for the ego's lane with the snapshot's one Location object each tick;
+def test_get_waypoint_answers_the_same_place_once(tiny_map, monkeypatch):
+    # the route criteria and the expert ask for the ego's lane each tick, at the same place while it waits;
     # a pickled map does not carry the answers of the one it came from
     assert tiny_map.get_waypoint(Location(1.0, 1.0, 0.0)) is not None
     assert "_waypoint_memo" in tiny_map.__dict__
@@ -221,14 +221,16 @@ def test_get_waypoint_answers_the_same_location_object_once(tiny_map, monkeypatc
     queries = []
     nearest = tiny_map._lane_index.nearest
     monkeypatch.setattr(tiny_map._lane_index, "nearest", lambda *a: queries.append(a) or nearest(*a))
-    ego = Location(10.3, 2.4, 0.0)
-    first = tiny_map.get_waypoint(ego)
-    assert tiny_map.get_waypoint(ego) is first and len(queries) == 1
-    assert tiny_map.get_waypoint(ego, lane_type=LaneType.SIDEWALK).lane_type == LaneType.SIDEWALK  # asked anew
-    assert tiny_map.get_waypoint(ego) is first and len(queries) == 2
-    # another object at the same place is looked up again (and found equal); a tuple is never remembered
-    again = tiny_map.get_waypoint(Location(10.3, 2.4, 0.0))
-    assert again == first and again is not first and len(queries) == 3
-    tiny_map.get_waypoint((10.3, 2.4, 0.0))
-    tiny_map.get_waypoint((10.3, 2.4, 0.0))
-    assert len(queries) == 5
+    first = tiny_map.get_waypoint(Location(10.3, 2.4, 0.0))
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0)) is first and len(queries) == 1
+    assert tiny_map.get_waypoint((10.3, 2.4, 0.0)) is first and len(queries) == 1
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0), lane_type=LaneType.SIDEWALK).lane_type == LaneType.SIDEWALK
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0), project_to_road=False) == first
+    assert len(queries) == 3  # other arguments: asked anew, each remembered apart
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0)) is first and len(queries) == 3
+    # any other place is looked up, to the last bit of its coordinates (−0.0 is not 0.0)
+    moved = tiny_map.get_waypoint(Location(10.300000000000002, 2.4, 0.0))
+    assert moved is not first and moved.s != first.s and len(queries) == 4
+    tiny_map.get_waypoint(Location(10.3, 2.4, 0.0))
+    tiny_map.get_waypoint(Location(10.3, 2.4, -0.0))
+    assert len(queries) == 6

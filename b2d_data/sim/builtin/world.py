@@ -154,6 +154,7 @@ class BuiltinSimulator:
         # caches rebuilt when actors are added, removed, teleported or (un)frozen (see _layout_changed)
         self._movers: tuple[list[_Actor], list[_Actor]] | None = None
         self._static: tuple[list[_Actor], collisions.Boxes, Any, float] | None = None
+        self._dynamic: list[_Actor] | None = None
         self._ground: GroundModel = ground_from_map(self._map)
         self._sensors: Any = None
         self._rig_ego: int | None = None
@@ -481,6 +482,7 @@ class BuiltinSimulator:
     def _layout_changed(self) -> None:
         self._movers = None
         self._static = None
+        self._dynamic = None
 
     def _mover_lists(self) -> tuple[list[_Actor], list[_Actor]]:
         """(vehicles, walkers) that move by themselves, in id order (cached until the layout changes)."""
@@ -634,7 +636,11 @@ class BuiltinSimulator:
         return collisions.Boxes.from_rows(rows)
 
     def _dynamic_colliders(self) -> list[_Actor]:
-        return [a for a in self._actors.values() if a.blueprint.collides and (a.moves or a.parent_id is not None)]
+        """Colliding actors that move by themselves or with a parent, in id order (cached until the layout changes)."""
+        if self._dynamic is None:
+            self._dynamic = [a for a in self._actors.values()
+                             if a.blueprint.collides and (a.moves or a.parent_id is not None)]
+        return self._dynamic
 
     def _blocking(self, actor: _Actor) -> list[_Actor]:
         """Existing actors whose boxes overlap the (not yet registered) actor's box."""

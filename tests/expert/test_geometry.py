@@ -378,6 +378,12 @@ def test_tcp_vehicle_and_walker_hazards(make_vehicle, make_walker):
     assert vehicle_hazard(CFG, ego, [make_vehicle(2, 6.0, 2.5, yaw=180.0)]) is None  # oncoming, next lane
     assert walker_hazard(CFG, ego, [make_walker(3, 6.0, -2.0, direction=(0.0, 1.0))]) == 3
     assert walker_hazard(CFG, ego, [make_walker(3, 6.0, 4.0, direction=(0.0, 1.0))]) is None
+    # the first vehicle in the cone, in the given order, past cars far off in x or in y; reach max(7.5, 2·10) = 20 m
+    fast = make_vehicle(1, 0.0, 0.0, speed=10.0, role="hero")
+    cars = [make_vehicle(4, 60.0, 0.5), make_vehicle(5, 3.0, 45.0), make_vehicle(6, 19.5, 0.5),
+            make_vehicle(7, 8.0, 0.0)]
+    assert vehicle_hazard(CFG, fast, cars) == 6
+    assert vehicle_hazard(CFG, fast, cars[:2]) is None
 
 
 # ------------------------------------------------------------------------------------- path-clear (§1.9)

@@ -79,6 +79,20 @@ def _xyz(actor: ActorState) -> np.ndarray:
     return np.array([loc.x, loc.y, loc.z])
 
 
+def _closer_than(actor: ActorState, centre: np.ndarray, radius: float) -> bool:
+    """``norm(actor's location − centre) < radius``, the norm skipped where one axis alone is over a metre farther."""
+    loc = actor.location
+    if _beyond((loc.x, loc.y, loc.z), centre, radius):
+        return False
+    return bool(np.linalg.norm(_xyz(actor) - centre) < radius)
+
+
+def _beyond(point: np.ndarray | tuple[float, float, float], centre: np.ndarray, radius: float) -> bool:
+    """Whether one axis alone puts ``point`` over a metre beyond ``radius`` of ``centre`` (so its norm is too)."""
+    return bool(abs(point[0] - centre[0]) > radius + 1.0 or abs(point[1] - centre[1]) > radius + 1.0
+                or abs(point[2] - centre[2]) > radius + 1.0)
+
+
 def _lower(current: ReducedBy | None, limit: float, speed: float, type_id: str | None, actor_id: int | None,
            distance: float) -> ReducedBy | None:
     """Keep the object that caused the lowest target speed (only objects that lowered it below ``limit``)."""
@@ -321,8 +335,8 @@ class Expert:
         near_lc = route.near_lane_change(speed) and not self.lane_changes.committed
         frames = num_future_frames(cfg, near_lc)
         vehicles = [v for v in snapshot.vehicles() if v.id != ego.id and valid_vehicle(v)]
-        nearby = [v for v in vehicles if np.linalg.norm(_xyz(v) - ego_loc) < cfg.detection_radius]
-        walkers = [w for w in snapshot.walkers() if np.linalg.norm(_xyz(w) - ego_loc) < cfg.detection_radius]
+        nearby = [v for v in vehicles if _closer_than(v, ego_loc, cfg.detection_radius)]
+        walkers = [w for w in snapshot.walkers() if _closer_than(w, ego_loc, cfg.detection_radius)]
         result = _Hazards(False, initial_speed, reduced_by, near_lane_change=near_lc)
 
         leading = leading_vehicle_ids(cfg, route, vehicles)
@@ -621,6 +635,8 @@ class Expert:
             if loc is None:
                 centre = light.transform.transform_point(light.trigger_volume.location)
                 loc = self._signal_centres.setdefault(light_id, np.array([centre.x, centre.y, centre.z]))
+            if _beyond(loc, position, self.config.light_radius):
+                continue
             if np.linalg.norm(loc - position) <= self.config.light_radius:
                 out.append(CloseSignal(light_id, "traffic.traffic_light", loc, light.transform.rotation.yaw,
                                        light_id == affecting, light.state))
@@ -636,6 +652,8 @@ class Expert:
             loc = self._signal_centres.get(sign_id)
             if loc is None:
                 loc = self._signal_centres.setdefault(sign_id, stop_sign_centre(sign))
+            if _beyond(loc, position, self.config.light_radius):
+                continue
             if np.linalg.norm(loc - position) <= self.config.light_radius:
                 out.append(CloseSignal(sign_id, sign.type_id, loc, sign.transform.rotation.yaw,
                                        sign_id == affecting and not self.stop_signs.cleared))

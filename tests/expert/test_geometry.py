@@ -702,3 +702,18 @@ def test_the_expert_forecasts_the_ego_once_per_hazard_check(make_route, make_veh
     driver._ego_tracks = {}  # the next check: a longer horizon than the one forecast is forecast anew
     assert same(driver._ego_boxes(ego, route, 9.0, 40), fresh(40))
     assert same(driver._ego_boxes(ego, route, 9.0, 80), fresh(80))
+
+
+def test_distance_prefilters_agree_with_the_norm(make_vehicle):
+    # the expert skips the norm where one axis alone is over a metre beyond the radius; otherwise it is the norm
+    from b2d_data.expert.expert import _beyond, _closer_than
+
+    centre = np.array([3.0, -2.0, 0.5])
+    assert _beyond((54.1, -2.0, 0.5), centre, 50.0) and not _beyond((53.9, -2.0, 0.5), centre, 50.0)
+    assert _beyond(np.array([3.0, 49.5, 0.5]), centre, 50.0) and not _beyond((3.0, 48.0, 0.5), centre, 50.0)
+    rng = np.random.default_rng(6)
+    for x, y in rng.uniform(-60.0, 60.0, (400, 2)):
+        car = make_vehicle(2, float(x), float(y))
+        expected = float(np.linalg.norm(np.array([x, y, 0.0]) - centre)) < 50.0
+        assert _closer_than(car, centre, 50.0) == expected
+        assert _beyond((x, y, 0.0), centre, 50.0) <= (not expected)  # beyond only where the norm says far

@@ -22,6 +22,7 @@ from b2d_data.expert.crossing_flow import (
     Crossing, NO_CROSSING, ROUTE_STEP, box_clearance, crossing_cars, crossing_flow_paths, densify, lengthened,
 )
 from b2d_data.expert.forecasting import (
+    BoxTrack,
     along_path,
     colliding,
     forecast_ego_boxes,
@@ -78,6 +79,20 @@ def _xyz(actor: ActorState) -> np.ndarray:
     return np.array([loc.x, loc.y, loc.z])
 
 
+def _closer_than(actor: ActorState, centre: np.ndarray, radius: float) -> bool:
+    """``norm(actor's location − centre) < radius``, the norm skipped where one axis alone is over a metre farther."""
+    loc = actor.location
+    if _beyond((loc.x, loc.y, loc.z), centre, radius):
+        return False
+    return bool(np.linalg.norm(_xyz(actor) - centre) < radius)
+
+
+def _beyond(point: np.ndarray | tuple[float, float, float], centre: np.ndarray, radius: float) -> bool:
+    """Whether one axis alone puts ``point`` over a metre beyond ``radius`` of ``centre`` (so its norm is too)."""
+    return bool(abs(point[0] - centre[0]) > radius + 1.0 or abs(point[1] - centre[1]) > radius + 1.0
+                or abs(point[2] - centre[2]) > radius + 1.0)
+
+
 def _lower(current: ReducedBy | None, limit: float, speed: float, type_id: str | None, actor_id: int | None,
            distance: float) -> ReducedBy | None:
     """Keep the object that caused the lowest target speed (only objects that lowered it below ``limit``)."""
@@ -108,6 +123,7 @@ class Expert:
         self.state: ExpertState | None = None
         self.blocked_ticks = 0
         self._signal_centres: dict[int, np.ndarray] = {}  # lights and signs do not move: trigger centres once
+        self._ego_tracks: dict[tuple[bool, float], BoxTrack] | None = None  # during _hazards: see _ego_boxes
 
     # -- public ------------------------------------------------------------------------------------------------
     def run_step(self, snapshot: Snapshot, hints: Sequence[ScenarioHint] = ()) -> VehicleControl:
@@ -281,6 +297,35 @@ class Expert:
 
         ``follower_floor`` is the speed a flow car behind the ego needs it to keep (``_flow_follower_floor``).
         """
+        self._ego_tracks = {}
+        try:
+            return self._hazard_speeds(snapshot, ego, route, initial_speed, reduced_by, flows, paths, crossing_lines,
+                                       follower_floor)
+        finally:
+            self._ego_tracks = None
+
+    def _ego_boxes(self, ego: ActorState, route: DenseRoute, target_speed: float, frames: int,
+                   braking: bool = False) -> BoxTrack:
+        """``forecast_ego_boxes`` over ``frames``, run once per hazard check for each target speed and braking flag.
+
+        Within one check the ego, the route, its index and the controllers' state do not change, and each forecast
+        frame follows from the frame before alone, so a shorter forecast is the start of a longer one, to the bit.
+        """
+        key = (braking, target_speed)
+        track = self._ego_tracks.get(key) if self._ego_tracks is not None else None
+        if track is None or track.centres.shape[0] < frames:
+            track = forecast_ego_boxes(self.config, ego, route, self.lateral, self.longitudinal, target_speed, frames,
+                                       braking=braking)
+            if self._ego_tracks is not None:
+                self._ego_tracks[key] = track
+        if track.centres.shape[0] == frames:
+            return track
+        return BoxTrack(track.actor_id, track.centres[:frames], track.yaws[:frames], track.extents[:frames])
+
+    def _hazard_speeds(self, snapshot: Snapshot, ego: ActorState, route: DenseRoute, initial_speed: float,
+                       reduced_by: ReducedBy | None, flows: bool, paths: Mapping[int, np.ndarray] | None,
+                       crossing_lines: Mapping[int, float] | None, follower_floor: float) -> _Hazards:
+        """The body of :meth:`_hazards`."""
         cfg = self.config
         ego_loc = _xyz(ego)
         speed = ego.speed()
@@ -290,8 +335,8 @@ class Expert:
         near_lc = route.near_lane_change(speed) and not self.lane_changes.committed
         frames = num_future_frames(cfg, near_lc)
         vehicles = [v for v in snapshot.vehicles() if v.id != ego.id and valid_vehicle(v)]
-        nearby = [v for v in vehicles if np.linalg.norm(_xyz(v) - ego_loc) < cfg.detection_radius]
-        walkers = [w for w in snapshot.walkers() if np.linalg.norm(_xyz(w) - ego_loc) < cfg.detection_radius]
+        nearby = [v for v in vehicles if _closer_than(v, ego_loc, cfg.detection_radius)]
+        walkers = [w for w in snapshot.walkers() if _closer_than(w, ego_loc, cfg.detection_radius)]
         result = _Hazards(False, initial_speed, reduced_by, near_lane_change=near_lc)
 
         leading = leading_vehicle_ids(cfg, route, vehicles)
@@ -314,7 +359,10 @@ class Expert:
                 result.reduced_by = _lower(result.reduced_by, initial_speed, speed_leading, v.type_id, v.id,
                                            distance)
 
-        ego_track = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
+        if flows and any(v.role_name == _SCENARIO_ROLE and v.speed() >= cfg.other_vehicle_slow_speed for v in nearby):
+            # the flow checks below forecast the ego over the longer commit horizon: one forecast serves both
+            self._ego_boxes(ego, route, initial_speed, max(frames, int(cfg.fps * cfg.commit_forecast_length)))
+        ego_track = self._ego_boxes(ego, route, initial_speed, frames)
         # a flow crossing the route has its own gap acceptance (crossing_flow.py): its cars leave the checks below
         crossing = (self._crossing_flow(ego, route, [v for v in nearby if v.id in crossing_lines], crossing_lines,
                                         initial_speed, paths)
@@ -430,8 +478,7 @@ class Expert:
             return Crossing(frozenset(lines))
         frames = int(cfg.fps * cfg.commit_forecast_length)
         # committed: a full brake from now on would leave the ego's box on a crossing car's path
-        stop = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames,
-                                  braking=True)
+        stop = self._ego_boxes(ego, route, initial_speed, frames, braking=True)
         e = ego.bounding_box.extent
         committed = any(float(box_clearance(stop.centres[-1:, :2], stop.yaws[-1:], (e.x, e.y),
                                             densify(paths[v.id]))[0]) < v.bounding_box.extent.y for v in cars)
@@ -441,8 +488,7 @@ class Expert:
             return Crossing(frozenset(lines), (), min(lines[v.id] for v in cars), True)
         # the cars as their agents drive them: along their paths at their speeds
         tracks = [along_path(cfg, t, v, paths[v.id]) for t, v in zip(forecast_vehicles(cfg, cars, frames, False), cars)]
-        go = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames),
-                          ego, cfg.commit_margin)
+        go = with_extents(self._ego_boxes(ego, route, initial_speed, frames), ego, cfg.commit_margin)
         seconds = cfg.flow_crossing_accept_time
         blocking = colliding(go, [lengthened(t, v, seconds) for t, v in zip(tracks, cars)])
         return Crossing(frozenset(lines), tuple(blocking), min(lines[v.id] for v in cars), False)
@@ -550,7 +596,7 @@ class Expert:
         frames = int(cfg.fps * cfg.commit_forecast_length)
         tracks = [along_path(cfg, t, by, paths[by.id]) if paths and by.id in paths else t
                   for t, by in zip(forecast_vehicles(cfg, flow, frames, False), flow)]
-        go = forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed, frames)
+        go = self._ego_boxes(ego, route, initial_speed, frames)
         by_id = {v.id: v for v in flow}
         yaw = math.radians(ego.transform.rotation.yaw)
 
@@ -570,8 +616,7 @@ class Expert:
         if not threats:
             return set(), set()
         real = {t.actor_id: with_extents(t, by_id[t.actor_id]) for t in tracks if t.actor_id in threats}
-        stop = with_extents(forecast_ego_boxes(cfg, ego, route, self.lateral, self.longitudinal, initial_speed,
-                                               frames, braking=True), ego)  # fmt: skip
+        stop = with_extents(self._ego_boxes(ego, route, initial_speed, frames, braking=True), ego)
         struck = set(colliding(stop, list(real.values())))
         if not struck:
             return late, set()
@@ -590,6 +635,8 @@ class Expert:
             if loc is None:
                 centre = light.transform.transform_point(light.trigger_volume.location)
                 loc = self._signal_centres.setdefault(light_id, np.array([centre.x, centre.y, centre.z]))
+            if _beyond(loc, position, self.config.light_radius):
+                continue
             if np.linalg.norm(loc - position) <= self.config.light_radius:
                 out.append(CloseSignal(light_id, "traffic.traffic_light", loc, light.transform.rotation.yaw,
                                        light_id == affecting, light.state))
@@ -605,6 +652,8 @@ class Expert:
             loc = self._signal_centres.get(sign_id)
             if loc is None:
                 loc = self._signal_centres.setdefault(sign_id, stop_sign_centre(sign))
+            if _beyond(loc, position, self.config.light_radius):
+                continue
             if np.linalg.norm(loc - position) <= self.config.light_radius:
                 out.append(CloseSignal(sign_id, sign.type_id, loc, sign.transform.rotation.yaw,
                                        sign_id == affecting and not self.stop_signs.cleared))

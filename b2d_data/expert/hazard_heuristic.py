@@ -38,6 +38,8 @@ def vehicle_hazard(config: ExpertConfig, ego: ActorState, vehicles: Sequence[Act
     for other in vehicles:
         if other.id == ego.id:
             continue
+        if abs(other.location.x - p1[0]) > reach + 1.0 or abs(other.location.y - p1[1]) > reach + 1.0:
+            continue  # farther than ``reach`` whatever its heading: the tests below would skip it too
         o2 = _heading(other.transform.rotation.yaw)
         offset = np.array([other.location.x, other.location.y]) - p1
         distance = float(np.linalg.norm(offset))

@@ -17,7 +17,7 @@ def lookahead_index(config: ExpertConfig, speed: float, n_points: int) -> int:
     return int(min(min(max(points, lo), hi), n_points - 1))
 
 
-def heading_error(position: np.ndarray, heading: float, target: np.ndarray) -> float:
+def heading_error(position: np.ndarray | tuple[float, float], heading: float, target: np.ndarray) -> float:
     """Wrapped angle (rad) from the heading to the direction of ``target``, in (−π, π]."""
     desired = math.atan2(float(target[1] - position[1]), float(target[0] - position[0]))
     return math.remainder(desired - heading, 2.0 * math.pi)
@@ -31,7 +31,8 @@ class LateralPIDController:
         self.errors: list[float] = []
         self._saved: list[float] = []
 
-    def step(self, route_points: np.ndarray, speed: float, position: np.ndarray, heading: float) -> float:
+    def step(self, route_points: np.ndarray, speed: float, position: np.ndarray | tuple[float, float],
+             heading: float) -> float:
         """Steer for the route ahead (``route_points[0]`` is the current route point), speed m/s, heading rad."""
         target = route_points[lookahead_index(self.config, speed, route_points.shape[0])]
         # normalised so that ±1 is ±90°, a leftover of PDM-Lite's earlier controller

@@ -130,7 +130,7 @@ class DenseRoute:
     def __len__(self) -> int:
         return self.points.shape[0]
 
-    def update_index(self, position: np.ndarray) -> int:
+    def update_index(self, position: np.ndarray | tuple[float, float]) -> int:
         """Move the index to the nearest route point among the next ``route_search_distance`` metres."""
         end = min(self.index + self.config.points(self.config.route_search_distance), len(self))
         window = self.points[self.index : end]

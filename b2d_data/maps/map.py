@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import logging
 import math
+import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -151,7 +152,20 @@ class Map:
         With ``project_to_road=False`` the location must lie inside that lane (within half its width in the
         horizontal plane), else ``None`` — CARLA's rule.
         """
+        # The ego's lane is asked for several times a tick (route criteria, the expert), and at the same place tick
+        # after tick while it waits: the last answer per argument pair is kept, keyed on the coordinates' bits.
         loc = _as_location(location)
+        key = _COORDINATE_BITS(loc.x, loc.y, loc.z)
+        memo = self.__dict__.setdefault("_waypoint_memo", {})
+        last = memo.get((project_to_road, lane_type))
+        if last is not None and last[0] == key:
+            return last[1]
+        waypoint = self._lookup_waypoint(loc, project_to_road, lane_type)
+        memo[(project_to_road, lane_type)] = (key, waypoint)
+        return waypoint
+
+    def _lookup_waypoint(self, loc: Location, project_to_road: bool, lane_type: LaneType) -> Waypoint | None:
+        """:meth:`get_waypoint` without the memo."""
         found = self._lane_index.nearest(np.array([loc.x, loc.y, loc.z]), int(lane_type))
         if found is None:
             return None
@@ -452,7 +466,7 @@ class Map:
         if unknown:
             raise KeyError(f"{self.name} has no junction {unknown[0]}")
         clone = copy.copy(self)
-        for cached in ("_signals", "_route_graph"):
+        for cached in ("_signals", "_route_graph", "_waypoint_memo"):
             clone.__dict__.pop(cached, None)
         clone.generated_light_junctions = wanted
         clone.junctions = clone._build_junctions()
@@ -518,10 +532,15 @@ class Map:
         state = dict(self.__dict__)
         state.pop("_signals", None)
         state.pop("_route_graph", None)
+        state.pop("_waypoint_memo", None)
         return state
 
     def __repr__(self) -> str:
         return f"Map({self.name!r}, roads={len(self.data.roads)}, lanes={len(self._segments)})"
+
+
+#: The exact bits of a location (−0.0 and 0.0 differ), the key of :meth:`Map.get_waypoint`'s memo.
+_COORDINATE_BITS = struct.Struct("<3d").pack
 
 
 def _concat(dst: list, src: list) -> list:

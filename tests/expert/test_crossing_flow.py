@@ -6,6 +6,7 @@ angles along x = 12.1, its cars driving toward +y; cars and ego are the fixtures
 
 from __future__ import annotations
 
+from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -77,8 +78,10 @@ def test_lengthened_adds_seconds_of_speed_at_both_ends(make_vehicle):
 
 
 def _decide(route, ego, cars, target: float = 10.0):
-    """``Expert._crossing_flow`` on a stand-in expert (its config and controllers only)."""
-    me = SimpleNamespace(config=CFG, lateral=LateralPIDController(CFG), longitudinal=make_longitudinal_controller(CFG))
+    """``Expert._crossing_flow`` on a stand-in expert (its config, controllers and ego forecasts only)."""
+    me = SimpleNamespace(config=CFG, lateral=LateralPIDController(CFG), longitudinal=make_longitudinal_controller(CFG),
+                         _ego_tracks=None)
+    me._ego_boxes = partial(Expert._ego_boxes, me)
     paths = {c.id: _path_from(c) for c in cars}
     points, headings = _ahead(route, 50.0)
     lines = crossing_cars(points, headings, ego, cars, paths, CFG.flow_hold_margin)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -274,6 +275,80 @@ def test_colliding_uses_same_frame(make_vehicle):
     assert colliding(ego, [still]) == [3]
 
 
+def test_colliding_finds_boxes_that_touch_only_at_a_corner():
+    # the footprint-circle prefilter must keep a pair whose boxes meet corner to corner: centres 4.41 m apart,
+    # circumradii 2 × hypot(2, 1) = 4.47 m (a prefilter on the longer half extent, 2 + 2 m, would drop it)
+    frames = 5
+    ego = BoxTrack(1, np.zeros((frames, 3)), np.zeros(frames), np.tile([2.0, 1.0, 1.0], (frames, 1)))
+
+    def other(actor_id: int, x: float, y: float) -> BoxTrack:
+        return BoxTrack(actor_id, np.tile([x, y, 0.0], (frames, 1)), np.zeros(frames), np.tile([2.0, 1.0, 1.0],
+                                                                                                (frames, 1)))
+
+    corner = other(7, 3.95, 1.95)  # a 5 cm square of overlap at the corners
+    gap = other(8, 4.05, 1.95)  # 5 cm apart along x
+    far = other(9, 40.0, 0.0)
+    assert colliding(ego, [far, corner, gap, far]) == [7]
+    assert colliding(ego, [gap, far]) == []
+
+
+def test_colliding_agrees_with_the_full_separating_axis_test():
+    # random boxes around the ego, many of them touching or nearly: the answer of the separating-axis test over
+    # every actor, in the given order
+    from b2d_data.expert.obb import overlap_many, yaw_axes
+
+    rng = np.random.default_rng(3)
+    frames = 40
+    ego = BoxTrack(0, np.column_stack([np.linspace(0.0, 20.0, frames), np.zeros(frames), np.zeros(frames)]),
+                   rng.uniform(-0.2, 0.2, frames), np.tile([2.9, 1.3, 0.8], (frames, 1)))
+    others = [BoxTrack(k, np.column_stack([rng.uniform(-5.0, 25.0) + rng.uniform(-1.0, 1.0, frames),
+                                           rng.uniform(-8.0, 8.0) + rng.uniform(-1.0, 1.0, frames),
+                                           np.zeros(frames)]),
+                       rng.uniform(-np.pi, np.pi, frames), np.tile([2.4, 1.0, 0.8], (frames, 1))) for k in range(60)]
+    centres = np.stack([t.centres for t in others])
+    hit = overlap_many(np.broadcast_to(ego.centres, centres.shape), np.broadcast_to(yaw_axes(ego.yaws),
+                                                                                    centres.shape + (3,)),
+                       np.broadcast_to(ego.extents, centres.shape), centres,
+                       yaw_axes(np.stack([t.yaws for t in others])), np.stack([t.extents for t in others]))
+    expected = [t.actor_id for t, h in zip(others, hit.any(axis=1)) if h]
+    assert 0 < len(expected) < len(others)
+    assert colliding(ego, others) == expected
+
+
+def test_vehicle_forecast_of_many_is_each_alone_to_the_bit(make_vehicle):
+    # vehicles of different boxes, speeds and controls forecast together: each track is its forecast alone
+    from b2d_data.format.transform import BoundingBox, Location
+
+    cars = [make_vehicle(1, 3.0, -2.0, yaw=30.0, speed=9.0, control=VehicleControl(throttle=0.6, steer=0.2)),
+            make_vehicle(2, -8.0, 4.0, yaw=-120.0, speed=0.4, half=(1.1, 0.4, 0.8)),
+            make_vehicle(3, 20.0, 1.0, yaw=178.0, speed=14.0, half=(6.0, 1.4, 1.9),
+                         control=VehicleControl(brake=1.0, steer=-0.4))]
+    cars[2] = replace(cars[2], bounding_box=BoundingBox(Location(0.8, -0.3, 1.9), Location(6.0, 1.4, 1.9)))
+    for near_lc, frames in ((False, 40), (True, 22)):
+        together = forecast_vehicles(CFG, cars, frames, near_lc)
+        for car, track in zip(cars, together):
+            (alone,) = forecast_vehicles(CFG, [car], frames, near_lc)
+            assert track.actor_id == car.id
+            for a, b in ((track.centres, alone.centres), (track.yaws, alone.yaws), (track.extents, alone.extents)):
+                assert a.shape == b.shape and np.array_equal(a, b)
+
+
+def test_vehicle_forecast_box_centre_turns_with_the_car(make_vehicle):
+    # a standing car heading +90° (south in CARLA's frame) whose box sits 1 m ahead, 0.5 m right and 0.7 m up of
+    # its origin: the box centre is 1 m along +y and 0.5 m along −x of it; a standing car keeps its real size
+    from b2d_data.format.transform import BoundingBox, Location
+
+    box = BoundingBox(Location(1.0, 0.5, 0.7), Location(2.0, 0.9, 0.7))
+    south = replace(make_vehicle(4, 10.0, 5.0, yaw=90.0), bounding_box=box)
+    east = replace(make_vehicle(5, 10.0, 5.0), bounding_box=box)  # heading +x: 1 m along +x, 0.5 m along +y
+    south_track, east_track = forecast_vehicles(CFG, [south, east], 10, near_lane_change=False)
+    assert south_track.centres == pytest.approx(np.tile([9.5, 6.0, 0.7], (10, 1)))
+    assert south_track.yaws == pytest.approx(np.full(10, np.pi / 2))
+    assert east_track.centres == pytest.approx(np.tile([11.0, 5.5, 0.7], (10, 1)))
+    for track in (south_track, east_track):
+        assert np.array_equal(track.extents, np.tile([2.0, 0.9, 0.7], (10, 1)))
+
+
 def test_leading_and_trailing_vehicles(make_route, make_vehicle):
     route = make_route(200.0)
     route.index = 500  # ego at x = 50
@@ -303,6 +378,12 @@ def test_tcp_vehicle_and_walker_hazards(make_vehicle, make_walker):
     assert vehicle_hazard(CFG, ego, [make_vehicle(2, 6.0, 2.5, yaw=180.0)]) is None  # oncoming, next lane
     assert walker_hazard(CFG, ego, [make_walker(3, 6.0, -2.0, direction=(0.0, 1.0))]) == 3
     assert walker_hazard(CFG, ego, [make_walker(3, 6.0, 4.0, direction=(0.0, 1.0))]) is None
+    # the first vehicle in the cone, in the given order, past cars far off in x or in y; reach max(7.5, 2·10) = 20 m
+    fast = make_vehicle(1, 0.0, 0.0, speed=10.0, role="hero")
+    cars = [make_vehicle(4, 60.0, 0.5), make_vehicle(5, 3.0, 45.0), make_vehicle(6, 19.5, 0.5),
+            make_vehicle(7, 8.0, 0.0)]
+    assert vehicle_hazard(CFG, fast, cars) == 6
+    assert vehicle_hazard(CFG, fast, cars[:2]) is None
 
 
 # ------------------------------------------------------------------------------------- path-clear (§1.9)
@@ -358,11 +439,42 @@ def test_vehicle_forecast_matches_the_one_step_model(make_vehicle):
     assert track.yaws[-1] == pytest.approx(yaw[0])
 
 
+def test_vehicle_forecast_is_the_step_by_step_euler_forecast_to_the_bit(make_vehicle):
+    # the running sums of forecast_vehicles against the Euler steps one frame at a time; a braking car comes to a
+    # stand within the horizon (the speed's clamp at 0), a faster one does not
+    cars = [make_vehicle(1, 1.0, 2.0, yaw=30.0, speed=7.0, control=VehicleControl(throttle=0.7, steer=-0.3)),
+            make_vehicle(2, -4.0, 9.5, yaw=-170.0, speed=3.9, control=VehicleControl(brake=1.0, steer=0.5)),
+            make_vehicle(3, 0.3, -7.0, yaw=95.0, speed=12.5, control=VehicleControl(brake=1.0)),
+            make_vehicle(4, 6.0, 6.0, yaw=-45.0, speed=0.0, control=VehicleControl(throttle=0.4, steer=1.0))]
+    frames = 40
+    tracks = forecast_vehicles(CFG, cars, frames, False)
+    from b2d_data.expert.kinematic_bicycle import slip_angle
+
+    x = np.array([c.location.x for c in cars])
+    y = np.array([c.location.y for c in cars])
+    yaw = np.radians([c.transform.rotation.yaw for c in cars])
+    speed = np.array([c.speed() for c in cars])
+    steer = np.array([c.control.steer for c in cars])
+    accel = np.where(np.array([c.control.brake for c in cars]) >= CFG.other_vehicle_brake_threshold,
+                     CFG.other_brake_acceleration, np.array([c.control.throttle for c in cars])
+                     * CFG.other_throttle_acceleration)
+    beta = slip_angle(CFG, steer)
+    turn = np.sin(beta) / CFG.rear_wheel_base * CFG.dt
+    for i in range(frames):
+        heading = yaw + beta
+        x = x + speed * np.cos(heading) * CFG.dt
+        y = y + speed * np.sin(heading) * CFG.dt
+        yaw = yaw + speed * turn
+        speed = np.maximum(0.0, speed + CFG.dt * accel)
+        for k, track in enumerate(tracks):
+            assert track.centres[i, 0] == x[k] and track.centres[i, 1] == y[k] and track.yaws[i] == yaw[k]
+    assert speed[1] == 0.0 and speed[2] > 0.0  # one braking car reached the clamp, the other did not
+    assert tracks[1].centres[-1, 0] == tracks[1].centres[30, 0] != tracks[1].centres[0, 0]
+
+
 # ------------------------------------------------------------------------------------ scenario handling
 def test_invading_turn_offsets_route_to_the_right(make_route):
     from b2d_data.expert.route_shifting import shift_route_for_invading_turn
-
-    from dataclasses import replace
 
     route = make_route(100.0)
     route.config = replace(route.config, invading_turn_shift_from_trigger=False)  # PDM-Lite's region
@@ -530,3 +642,78 @@ def test_a_flow_joining_the_route_holds_the_ego_short_of_its_path(make_route, ma
     # cars at the ends of their paths (nothing ahead of them): no hold, and no error
     route.index = 0
     assert Expert._conflict_hold(me, ego, route, [np.zeros((0, 2))]) is None
+
+
+def test_a_shorter_ego_forecast_is_the_start_of_a_longer_one(make_route, make_vehicle):
+    # what Expert._ego_boxes relies on to serve several horizons from one forecast
+    from b2d_data.expert.forecasting import forecast_ego_boxes
+    from b2d_data.expert.lateral_controller import LateralPIDController
+    from b2d_data.expert.longitudinal_controller import make_longitudinal_controller
+
+    cfg = ExpertConfig.for_builtin()
+    route = make_route(100.0, cfg)
+    route.points[:, 1] = 0.02 * route.points[:, 0]  # a slight slant, so that the ego steers
+    ego = make_vehicle(1, 0.0, 0.5, yaw=4.0, speed=6.0, half=(2.45, 1.06, 0.75))
+    for braking in (False, True):
+        lateral, longitudinal = LateralPIDController(cfg), make_longitudinal_controller(cfg)
+        long = forecast_ego_boxes(cfg, ego, route, lateral, longitudinal, 9.0, 80, braking=braking)
+        short = forecast_ego_boxes(cfg, ego, route, lateral, longitudinal, 9.0, 40, braking=braking)
+        for a, b in ((short.centres, long.centres[:40]), (short.yaws, long.yaws[:40]),
+                     (short.extents, long.extents[:40])):
+            assert np.array_equal(a, b)
+
+
+def test_the_expert_forecasts_the_ego_once_per_hazard_check(make_route, make_vehicle, monkeypatch):
+    from b2d_data.expert import expert as expert_module
+    from b2d_data.expert.forecasting import forecast_ego_boxes
+
+    cfg = ExpertConfig.for_builtin()
+    route = make_route(100.0, cfg)
+    ego = make_vehicle(1, 0.0, 0.3, yaw=2.0, speed=6.0, half=(2.45, 1.06, 0.75))
+    driver = expert_module.Expert(None, [(wp, RoadOption.LANEFOLLOW) for wp in route.coarse_waypoints[:20:10]], cfg)
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append((args[-1], kwargs.get("braking", False)))
+        return forecast_ego_boxes(*args, **kwargs)
+
+    monkeypatch.setattr(expert_module, "forecast_ego_boxes", counted)
+
+    def fresh(frames: int, braking: bool = False) -> BoxTrack:
+        return forecast_ego_boxes(cfg, ego, route, driver.lateral, driver.longitudinal, 9.0, frames, braking=braking)
+
+    def same(a: BoxTrack, b: BoxTrack) -> bool:
+        return all(np.array_equal(x, y) for x, y in ((a.centres, b.centres), (a.yaws, b.yaws),
+                                                     (a.extents, b.extents)))
+
+    # outside a hazard check every request is forecast afresh
+    assert same(driver._ego_boxes(ego, route, 9.0, 40), fresh(40))
+    assert same(driver._ego_boxes(ego, route, 9.0, 40), fresh(40))
+    assert len(calls) == 2
+    calls.clear()
+    driver._ego_tracks = {}  # as during _hazards
+    assert same(driver._ego_boxes(ego, route, 9.0, 80), fresh(80))
+    assert same(driver._ego_boxes(ego, route, 9.0, 40), fresh(40))  # the start of the 80-frame forecast
+    assert same(driver._ego_boxes(ego, route, 9.0, 80, braking=True), fresh(80, braking=True))
+    assert same(driver._ego_boxes(ego, route, 9.0, 80, braking=True), fresh(80, braking=True))
+    assert same(driver._ego_boxes(ego, route, 7.0, 40), forecast_ego_boxes(cfg, ego, route, driver.lateral,
+                                                                          driver.longitudinal, 7.0, 40))
+    assert calls == [(80, False), (80, True), (40, False)]
+    driver._ego_tracks = {}  # the next check: a longer horizon than the one forecast is forecast anew
+    assert same(driver._ego_boxes(ego, route, 9.0, 40), fresh(40))
+    assert same(driver._ego_boxes(ego, route, 9.0, 80), fresh(80))
+
+
+def test_distance_prefilters_agree_with_the_norm(make_vehicle):
+    # the expert skips the norm where one axis alone is over a metre beyond the radius; otherwise it is the norm
+    from b2d_data.expert.expert import _beyond, _closer_than
+
+    centre = np.array([3.0, -2.0, 0.5])
+    assert _beyond((54.1, -2.0, 0.5), centre, 50.0) and not _beyond((53.9, -2.0, 0.5), centre, 50.0)
+    assert _beyond(np.array([3.0, 49.5, 0.5]), centre, 50.0) and not _beyond((3.0, 48.0, 0.5), centre, 50.0)
+    rng = np.random.default_rng(6)
+    for x, y in rng.uniform(-60.0, 60.0, (400, 2)):
+        car = make_vehicle(2, float(x), float(y))
+        expected = float(np.linalg.norm(np.array([x, y, 0.0]) - centre)) < 50.0
+        assert _closer_than(car, centre, 50.0) == expected
+        assert _beyond((x, y, 0.0), centre, 50.0) <= (not expected)  # beyond only where the norm says far

@@ -210,3 +210,27 @@ def test_nearest_many_is_nearest_to_the_last_bit(carla_towns, town):
             want = lane_index.nearest(point, int(lane_type))
             assert got == want and (want is None or (got[1].hex(), got[2].hex()) == (want[1].hex(), want[2].hex()))
     assert lane_index.nearest_many(np.zeros((0, 3))) == []
+
+
+def test_get_waypoint_answers_the_same_place_once(tiny_map, monkeypatch):
+    # the route criteria and the expert ask for the ego's lane each tick, at the same place while it waits;
+    # a pickled map does not carry the answers of the one it came from
+    assert tiny_map.get_waypoint(Location(1.0, 1.0, 0.0)) is not None
+    assert "_waypoint_memo" in tiny_map.__dict__
+    assert "_waypoint_memo" not in pickle.loads(pickle.dumps(tiny_map)).__dict__
+    queries = []
+    nearest = tiny_map._lane_index.nearest
+    monkeypatch.setattr(tiny_map._lane_index, "nearest", lambda *a: queries.append(a) or nearest(*a))
+    first = tiny_map.get_waypoint(Location(10.3, 2.4, 0.0))
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0)) is first and len(queries) == 1
+    assert tiny_map.get_waypoint((10.3, 2.4, 0.0)) is first and len(queries) == 1
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0), lane_type=LaneType.SIDEWALK).lane_type == LaneType.SIDEWALK
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0), project_to_road=False) == first
+    assert len(queries) == 3  # other arguments: asked anew, each remembered apart
+    assert tiny_map.get_waypoint(Location(10.3, 2.4, 0.0)) is first and len(queries) == 3
+    # any other place is looked up, to the last bit of its coordinates (−0.0 is not 0.0)
+    moved = tiny_map.get_waypoint(Location(10.300000000000002, 2.4, 0.0))
+    assert moved is not first and moved.s != first.s and len(queries) == 4
+    tiny_map.get_waypoint(Location(10.3, 2.4, 0.0))
+    tiny_map.get_waypoint(Location(10.3, 2.4, -0.0))
+    assert len(queries) == 6

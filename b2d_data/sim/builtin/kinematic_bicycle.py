@@ -24,6 +24,7 @@ vehicle coasts down.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -247,14 +248,43 @@ def accel_for(dynamics: LongitudinalModel, speed: float, accel: float) -> tuple[
     return 0.0, min(1.0, (-accel - resist) / dynamics.max_brake)
 
 
+def accel_for_many(dynamics: Sequence[LongitudinalModel], speeds: Sequence[float],
+                   accels: Sequence[float]) -> list[tuple[float, float]]:
+    """:func:`accel_for` of each (dynamics, speed, accel), the CARLA Lincoln's polynomials evaluated for all at once."""
+    out: list[tuple[float, float]] = []
+    lincoln = [k for k, d in enumerate(dynamics) if d.law == LongitudinalLaw.CARLA_LINCOLN]
+    terms = _lincoln_terms([max(0.0, speeds[k]) for k in lincoln], [dynamics[k] for k in lincoln]) if lincoln else []
+    row = dict(zip(lincoln, terms))
+    for k, (d, speed, accel) in enumerate(zip(dynamics, speeds, accels)):
+        out.append(_lincoln_solve(d, max(0.0, speed), accel, row[k]) if k in row else accel_for(d, speed, accel))
+    return out
+
+
 def _lincoln_accel_for(dynamics: LongitudinalModel, speed: float, accel: float) -> tuple[float, float]:
     """:func:`accel_for` for the CARLA Lincoln law: solves the same three pieces :func:`lincoln_accel` joins."""
-    v = np.array([speed])
-    rolling, drag = np.array([dynamics.rolling]), np.array([dynamics.drag])
-    at_threshold = float(lincoln_throttle_accel(v, np.array([LINCOLN_THROTTLE_THRESHOLD]), rolling, drag)[0])
-    coast = float(lincoln_coast_accel(v, rolling, drag)[0])
+    return _lincoln_solve(dynamics, speed, accel, _lincoln_terms([speed], [dynamics])[0])
+
+
+def _lincoln_terms(speeds: Sequence[float], dynamics: Sequence[LongitudinalModel]) -> list[tuple[float, ...]]:
+    """Per speed (m/s, ≥ 0): the Lincoln law's accelerations at the throttle threshold, coasting, at full throttle
+    and at full brake, and the throttle polynomial's (A, B, C); numpy's tiny-array overhead paid once for all."""
+    v = np.array(speeds, dtype=np.float64)
+    rolling = np.array([d.rolling for d in dynamics], dtype=np.float64)
+    drag = np.array([d.drag for d in dynamics], dtype=np.float64)
+    at_threshold = lincoln_throttle_accel(v, np.full_like(v, LINCOLN_THROTTLE_THRESHOLD), rolling, drag)
+    coast = lincoln_coast_accel(v, rolling, drag)
+    full = lincoln_throttle_accel(v, np.ones_like(v), rolling, drag)
+    a, b, c = _throttle_poly_terms(v)
+    brake = lincoln_brake_accel(v)
+    return list(zip(*(x.tolist() for x in (at_threshold, coast, full, a, b, c, brake))))
+
+
+def _lincoln_solve(dynamics: LongitudinalModel, speed: float, accel: float,
+                   terms: tuple[float, ...]) -> tuple[float, float]:
+    """:func:`_lincoln_accel_for` given the speed's :func:`_lincoln_terms`."""
+    at_threshold, coast, full_throttle, a, b, c, full = terms
     if accel >= at_threshold:
-        if accel >= float(lincoln_throttle_accel(v, np.ones(1), rolling, drag)[0]):
+        if accel >= full_throttle:
             return 1.0, 0.0
         # Invert the polynomial's A + B·t + C·t² = target (km/h, at the speed capped to its range). Above the range
         # the law is coast + (poly − coast_hi)·v_hi/v, so the polynomial must reach coast_hi + (accel − coast)·v/v_hi.
@@ -264,7 +294,6 @@ def _lincoln_accel_for(dynamics: LongitudinalModel, speed: float, accel: float) 
             coast_v = -(dynamics.rolling + dynamics.drag * speed * speed)
             coast_hi = -(dynamics.rolling + dynamics.drag * capped * capped)
             wanted = coast_hi + (accel - coast_v) * speed / capped
-        a, b, c = (float(x[0]) for x in _throttle_poly_terms(v))
         d = (capped + wanted * LINCOLN_POLY_DT) * 3.6 - a
         # the root where the polynomial rises with throttle, in the form that stays exact as C → 0
         root = 2.0 * d / (b + np.sqrt(max(0.0, b * b + 4.0 * c * d)))
@@ -272,7 +301,6 @@ def _lincoln_accel_for(dynamics: LongitudinalModel, speed: float, accel: float) 
     if accel >= coast:
         span = at_threshold - coast
         return (LINCOLN_THROTTLE_THRESHOLD * (accel - coast) / span if span > 1e-9 else 0.0), 0.0
-    full = float(lincoln_brake_accel(v)[0])
     if full >= coast - 1e-9:  # standing (almost) still: the brake cannot slow it further
         return 0.0, 1.0
     return 0.0, float(min(1.0, (coast - accel) / (coast - full)))

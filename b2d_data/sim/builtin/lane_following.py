@@ -25,7 +25,7 @@ import numpy as np
 
 from b2d_data.sim import blueprints
 from b2d_data.sim.api import ActorKind, ActorState, Snapshot, TrafficLightState, VehicleControl
-from b2d_data.sim.builtin.kinematic_bicycle import accel_for
+from b2d_data.sim.builtin.kinematic_bicycle import accel_for_many
 
 if TYPE_CHECKING:
     from b2d_data.maps import Map, Waypoint
@@ -142,7 +142,7 @@ class LanePath:
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(xy (K, 2) with the lateral offset applied, yaw in rad (K,), arc length (K,), lane width (K,))."""
-        return self._xy, self._yaw, np.arange(len(self._xy)) * PATH_STEP, self._width
+        return self._xy, self._yaw, _arc_lengths(len(self._xy)), self._width
 
     def first_junction(self) -> tuple[int, int, int, tuple[tuple[int, int, int], ...]] | None:
         """(junction id, entry index, exit index, lane keys) of the first junction on the path, if any.
@@ -171,6 +171,20 @@ class LanePath:
             if not keys or keys[-1] != key:
                 keys.append(key)
         return self.waypoints[entry].junction_id, entry, exit_, tuple(keys)
+
+
+def _arc_lengths(count: int) -> np.ndarray:
+    """0, 1, ... ``count`` − 1 path steps (m); read-only, shared by every path of that many points."""
+    arc = _ARCS.get(count)
+    if arc is None:
+        arc = np.arange(count) * PATH_STEP
+        arc.flags.writeable = False
+        arc = _ARCS.setdefault(count, arc)
+    return arc
+
+
+#: :func:`_arc_lengths` by point count (paths hold at most ~60 points, so this stays small).
+_ARCS: dict[int, np.ndarray] = {}
 
 
 # -- steering and speed -----------------------------------------------------------------------------------
@@ -232,12 +246,33 @@ def pure_pursuit_steer(x: float, y: float, yaw_rad: float, speed: float, path_xy
 def speed_control(actor: ActorState, accel: float, hold_when_stopped: bool = True,
                   speed: float | None = None) -> tuple[float, float]:
     """(throttle, brake) giving ``accel`` at the actor's speed through its blueprint's longitudinal model."""
-    dynamics = blueprints.BLUEPRINTS.get(actor.type_id)
-    dynamics = dynamics.dynamics if dynamics is not None and dynamics.dynamics is not None else blueprints.CAR_DYNAMICS
-    v = max(0.0, actor.forward_speed() if speed is None else speed)
-    if hold_when_stopped and v < 0.05 and accel <= 0.0:
-        return 0.0, 1.0  # standing still: keep the brake on, as TM does
-    return accel_for(dynamics, v, accel)
+    return speed_controls([actor], [accel], [actor.forward_speed() if speed is None else speed], hold_when_stopped)[0]
+
+
+def speed_controls(actors: Sequence[ActorState], accels: Sequence[float], speeds: Sequence[float],
+                   hold_when_stopped: bool = True) -> list[tuple[float, float]]:
+    """:func:`speed_control` of many actors at their given speeds (the longitudinal models solved together)."""
+    out: list[tuple[float, float] | None] = []
+    todo: list[int] = []
+    for k, (actor, accel, speed) in enumerate(zip(actors, accels, speeds)):
+        v = max(0.0, speed)
+        if hold_when_stopped and v < 0.05 and accel <= 0.0:
+            out.append((0.0, 1.0))  # standing still: keep the brake on, as TM does
+        else:
+            out.append(None)
+            todo.append(k)
+    if todo:
+        solved = accel_for_many([_dynamics(actors[k].type_id) for k in todo], [max(0.0, speeds[k]) for k in todo],
+                                [accels[k] for k in todo])
+        for k, control in zip(todo, solved):
+            out[k] = control
+    return out  # type: ignore[return-value]  # every None was replaced
+
+
+def _dynamics(type_id: str) -> blueprints.LongitudinalModel:
+    """The longitudinal model of a blueprint (a car's for unknown ones)."""
+    blueprint = blueprints.BLUEPRINTS.get(type_id)
+    return blueprint.dynamics if blueprint is not None and blueprint.dynamics is not None else blueprints.CAR_DYNAMICS
 
 
 # -- stop lines -------------------------------------------------------------------------------------------
@@ -546,15 +581,19 @@ class TrafficDriver:
                 elif junction.wants:
                     requests[agent.id] = (junction.junction_id, junction.keys)
         granted = self.arbiter.update(snapshot.frame, inside, requests, managed=managed)
-        out: dict[int, DriverOutput] = {}
-        for i, (agent, actor) in enumerate(zip(live, actors)):
+        final: list[tuple[float, str]] = []
+        for i, agent in enumerate(live):
             accel, reason, junction = decided[i]
             if junction is not None and agent.id in requests and agent.id not in granted:
                 wait = idm_accel(max(0.0, float(batch.speed[i])), max(agent.target_speed, 0.1), junction.distance,
                                  0.0, self.idm, s0=self.idm.stop_line_gap)
                 if wait < accel:
                     accel, reason = wait, "junction"
-            throttle, brake = speed_control(actor, accel, speed=float(batch.speed[i]))
+            final.append((accel, reason))
+        pedals = speed_controls(actors, [a for a, _ in final], batch.speed.tolist())
+        out: dict[int, DriverOutput] = {}
+        for i, agent in enumerate(live):
+            (accel, reason), (throttle, brake) = final[i], pedals[i]
             control = VehicleControl(throttle=round(throttle, 4), steer=round(float(steers[i]), 4),
                                      brake=round(brake, 4))
             leader = int(leader_ids[i]) if leader_ids[i] >= 0 else None
@@ -661,35 +700,44 @@ class _Batch:
         n = len(actors)
         h = max(2, min(points, max(len(a.path.waypoints) for a in agents)))
         self.ids = np.array([a.id for a in actors], dtype=np.int64)
-        self.pos = np.empty((n, 2))
-        self.yaw = np.empty(n)
-        self.speed = np.empty(n)
-        self.half = np.empty((n, 2))
-        self.geometry = np.empty((n, 3))
         self.xy = np.full((n, h, 2), self.FAR)
         self.path_yaw = np.zeros((n, h))
-        self.s = np.full((n, h), self.FAR)
-        self.count = np.empty(n, dtype=np.int64)
-        self.s_self = np.zeros(n)
+        # per-vehicle scalars gathered as Python floats and turned into arrays once (a row write into an array
+        # costs about as much as the arithmetic)
+        pos, yaws, speeds, half, geometry, counts, s_self = [], [], [], [], [], [], []
         for i, (actor, agent) in enumerate(zip(actors, agents)):
             t = actor.transform
-            self.pos[i] = (t.location.x, t.location.y)
-            self.yaw[i] = math.radians(t.rotation.yaw)
+            x, y = t.location.x, t.location.y
+            yaw = math.radians(t.rotation.yaw)
             v = actor.velocity
-            self.speed[i] = v.x * math.cos(self.yaw[i]) + v.y * math.sin(self.yaw[i])  # pitch ignored: small
-            self.half[i] = (actor.bounding_box.extent.x, actor.bounding_box.extent.y)
+            pos.append((x, y))
+            yaws.append(yaw)
+            speeds.append(v.x * math.cos(yaw) + v.y * math.sin(yaw))  # pitch ignored: small
+            half.append((actor.bounding_box.extent.x, actor.bounding_box.extent.y))
             g = _geometry(actor.type_id)
-            self.geometry[i] = (g.rear_length, g.front_length, g.steer_to_wheel)
-            xy, yaw, arc, _ = agent.path.arrays()
+            geometry.append((g.rear_length, g.front_length, g.steer_to_wheel))
+            xy, path_yaw, _, _ = agent.path.arrays()
             k = min(h, len(xy))
-            self.count[i] = k
+            counts.append(k)
             self.xy[i, :k] = xy[:k]
-            self.path_yaw[i, :k] = yaw[:k]
+            self.path_yaw[i, :k] = path_yaw[:k]
+            along = 0.0
             if k >= 2:
-                t0 = xy[1] - xy[0]
-                n0 = math.hypot(t0[0], t0[1]) or 1.0
-                self.s_self[i] = ((self.pos[i, 0] - xy[0, 0]) * t0[0] + (self.pos[i, 1] - xy[0, 1]) * t0[1]) / n0
-            self.s[i, :k] = arc[:k] - self.s_self[i]
+                (x0, y0), (x1, y1) = xy[:2].tolist()
+                tx, ty = x1 - x0, y1 - y0
+                n0 = math.hypot(tx, ty) or 1.0
+                along = ((x - x0) * tx + (y - y0) * ty) / n0
+            s_self.append(along)
+        self.pos = np.array(pos, dtype=np.float64).reshape(n, 2)
+        self.yaw = np.array(yaws, dtype=np.float64)
+        self.speed = np.array(speeds, dtype=np.float64)
+        self.half = np.array(half, dtype=np.float64).reshape(n, 2)
+        self.geometry = np.array(geometry, dtype=np.float64).reshape(n, 3)
+        self.count = np.array(counts, dtype=np.int64)
+        self.s_self = np.array(s_self, dtype=np.float64)
+        # arc length from the vehicle along its path: the path's own (k · PATH_STEP) less where the vehicle is
+        self.s = np.where(np.arange(h)[None, :] < self.count[:, None],
+                          _arc_lengths(h)[None, :] - self.s_self[:, None], self.FAR)
 
     def curve_speed(self, lateral_accel: float, decel: float) -> np.ndarray:
         """Speed per vehicle from which it can brake (at ``decel``) to the bend speed sqrt(a_lat / κ) of every

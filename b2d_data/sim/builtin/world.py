@@ -154,6 +154,7 @@ class BuiltinSimulator:
         # caches rebuilt when actors are added, removed, teleported or (un)frozen (see _layout_changed)
         self._movers: tuple[list[_Actor], list[_Actor]] | None = None
         self._static: tuple[list[_Actor], collisions.Boxes, Any, float] | None = None
+        self._dynamic: list[_Actor] | None = None
         self._ground: GroundModel = ground_from_map(self._map)
         self._sensors: Any = None
         self._rig_ego: int | None = None
@@ -481,6 +482,7 @@ class BuiltinSimulator:
     def _layout_changed(self) -> None:
         self._movers = None
         self._static = None
+        self._dynamic = None
 
     def _mover_lists(self) -> tuple[list[_Actor], list[_Actor]]:
         """(vehicles, walkers) that move by themselves, in id order (cached until the layout changes)."""
@@ -577,10 +579,14 @@ class BuiltinSimulator:
             vel[i] = movers[i].target_velocity
             movers[i].target_velocity = None
         yaw_rate = np.degrees(np.remainder(arr.yaw - yaw0 + math.pi, 2.0 * math.pi) - math.pi) / dt
+        # every vehicle's rows at once; each actor keeps its rows (views), which are only ever replaced, not changed
+        acceleration = (vel - np.array([a.velocity for a in movers])) / dt
+        spin = np.zeros((len(movers), 3))
+        spin[:, 2] = yaw_rate
         for i, a in enumerate(movers):
-            a.acceleration = (vel[i] - a.velocity) / dt
+            a.acceleration = acceleration[i]
             a.velocity = vel[i]
-            a.angular_velocity = np.array([0.0, 0.0, yaw_rate[i]])
+            a.angular_velocity = spin[i]
             a.cached_state = None
 
     def _step_walkers(self, dt: float) -> None:
@@ -630,7 +636,11 @@ class BuiltinSimulator:
         return collisions.Boxes.from_rows(rows)
 
     def _dynamic_colliders(self) -> list[_Actor]:
-        return [a for a in self._actors.values() if a.blueprint.collides and (a.moves or a.parent_id is not None)]
+        """Colliding actors that move by themselves or with a parent, in id order (cached until the layout changes)."""
+        if self._dynamic is None:
+            self._dynamic = [a for a in self._actors.values()
+                             if a.blueprint.collides and (a.moves or a.parent_id is not None)]
+        return self._dynamic
 
     def _blocking(self, actor: _Actor) -> list[_Actor]:
         """Existing actors whose boxes overlap the (not yet registered) actor's box."""
@@ -719,10 +729,9 @@ class BuiltinSimulator:
             type_id=blueprint.type_id,
             kind=blueprint.kind,
             transform=a.transform(),
-            velocity=Vector3D(float(a.velocity[0]), float(a.velocity[1]), float(a.velocity[2])),
-            angular_velocity=Vector3D(float(a.angular_velocity[0]), float(a.angular_velocity[1]),
-                                      float(a.angular_velocity[2])),
-            acceleration=Vector3D(float(a.acceleration[0]), float(a.acceleration[1]), float(a.acceleration[2])),
+            velocity=Vector3D(*a.velocity.tolist()),
+            angular_velocity=Vector3D(*a.angular_velocity.tolist()),
+            acceleration=Vector3D(*a.acceleration.tolist()),
             bounding_box=a.bbox or blueprint.bounding_box,
             semantic_tags=blueprint.semantic_tags,
             role_name=a.spec.role_name,

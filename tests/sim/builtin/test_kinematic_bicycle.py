@@ -237,6 +237,26 @@ def test_ego_inverse_model_round_trip():
         assert got == pytest.approx(wanted, abs=1e-9)
 
 
+def test_inverse_models_of_many_vehicles_are_each_alone_to_the_bit():
+    # background traffic solves its vehicles' pedals together: Lincolns (polynomials evaluated for all at once) among
+    # linear-law cars, speeds from reversing to above the polynomial's range, every branch of the inverse
+    rng = np.random.default_rng(4)
+    car = blueprints.CAR_DYNAMICS
+    dynamics = [EGO if rng.uniform() < 0.6 else car for _ in range(300)]
+    speeds = rng.uniform(-2.0, 40.0, 300)
+    accels = rng.uniform(-12.0, 6.0, 300)
+    # and the narrow band between coasting and the throttle threshold (throttle 0.15 at 0.5 m/s, see above)
+    dynamics.append(EGO)
+    speeds, accels = np.append(speeds, 0.5), np.append(accels, -0.2501 + 0.5 * (0.094609 + 0.2501))
+    many = kb.accel_for_many(dynamics, speeds.tolist(), accels.tolist())
+    assert many == [kb.accel_for(d, float(v), float(a)) for d, v, a in zip(dynamics, speeds, accels)]
+    # the Lincolns hit every branch: full throttle, the polynomial, below the threshold, braking, held at a stand
+    kinds = {(t == 1.0, 0.3 <= t < 1.0, 0.0 < t < 0.3, b > 0.0) for d, (t, b) in zip(dynamics, many) if d is EGO}
+    assert {(True, False, False, False), (False, True, False, False), (False, False, True, False),
+            (False, False, False, True)} <= kinds
+    assert kb.accel_for_many([], [], []) == []
+
+
 # ------------------------------------------------------------- step responses of the ego in the BuiltinSimulator
 # The hero Lincoln on the flat stand-in town (tests/sim/conftest.py) against PDM-Lite's ego model (the expert's
 # ``ego_next_speed`` iterated with x += v·dt, i.e. the CARLA fit); the figures in the comments are that iteration's.

@@ -113,3 +113,64 @@ def test_arbiter_knows_the_whole_lanes_of_a_junction_longer_than_a_path(carla_ma
     assert [k[0] for k in keys] == [1083, 1083]
     assert len(arb._polylines[keys[0]]) >= 70  # the whole centre line, from the map
     assert not arb.conflict(keys[0], keys[1])  # 3.5 m apart all along: side by side, they never meet
+
+
+def test_speed_controls_of_many_actors_are_each_alone():
+    # the traffic driver's pedals for all its vehicles at once: each as speed_control gives it alone, a standing
+    # vehicle that is to slow down keeps its brake on
+    from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform, Vector3D
+    from b2d_data.sim.api import ActorKind, ActorState
+    from b2d_data.sim.builtin.lane_following import speed_control, speed_controls
+
+    def car(type_id: str, speed: float) -> ActorState:
+        return ActorState(id=1, type_id=type_id, kind=ActorKind.VEHICLE, transform=Transform(Location(), Rotation()),
+                          velocity=Vector3D(speed, 0.0, 0.0), angular_velocity=Vector3D(), acceleration=Vector3D(),
+                          bounding_box=BoundingBox(Location(), Location(2.0, 1.0, 0.8)), semantic_tags=(14,))
+
+    types = ["vehicle.lincoln.mkz_2020", "vehicle.tesla.model3", "vehicle.unknown.kart"]
+    rng = np.random.default_rng(2)
+    actors = [car(types[k % 3], float(rng.uniform(-1.0, 30.0))) for k in range(60)]
+    actors += [car(types[0], 0.0), car(types[1], 0.02)]
+    accels = rng.uniform(-9.0, 4.0, len(actors)).tolist()
+    accels[-2:] = [-1.0, 0.0]
+    speeds = [a.velocity.x for a in actors]
+    together = speed_controls(actors, accels, speeds)
+    assert together == [speed_control(a, acc, speed=v) for a, acc, v in zip(actors, accels, speeds)]
+    assert together[-2:] == [(0.0, 1.0), (0.0, 1.0)]
+    assert speed_controls(actors[:3], accels[:3], speeds[:3], hold_when_stopped=False) == [
+        speed_control(a, acc, hold_when_stopped=False, speed=v) for a, acc, v in zip(actors[:3], accels[:3], speeds[:3])]
+
+
+def test_batch_arrays_of_the_driven_vehicles():
+    # the padded per-vehicle arrays the traffic driver works on, worked out by hand: a vehicle 0.3 m past the first
+    # point of a straight 10-point path (and 0.2 m beside it) heading along it at 5 m/s (plus 1 m/s sideways), and
+    # one whose path is a single point
+    from types import SimpleNamespace
+
+    from b2d_data.format.transform import BoundingBox, Location, Rotation, Transform, Vector3D
+    from b2d_data.sim.api import ActorKind, ActorState
+    from b2d_data.sim.builtin.lane_following import DrivingAgent, LanePath, _Batch
+
+    def wp(x: float, y: float) -> SimpleNamespace:
+        return SimpleNamespace(transform=Transform(Location(x, y, 0.0), Rotation(yaw=90.0 if y else 0.0)),
+                               lane_width=3.5)
+
+    def car(actor_id: int, x: float, y: float, yaw: float, velocity: tuple[float, float]) -> ActorState:
+        return ActorState(id=actor_id, type_id="vehicle.tesla.model3", kind=ActorKind.VEHICLE,
+                          transform=Transform(Location(x, y, 0.0), Rotation(yaw=yaw)),
+                          velocity=Vector3D(*velocity, 0.0), angular_velocity=Vector3D(), acceleration=Vector3D(),
+                          bounding_box=BoundingBox(Location(), Location(2.4, 1.0, 0.8)), semantic_tags=(14,))
+
+    agents = [DrivingAgent(1, LanePath.from_waypoints([wp(float(i), 0.0) for i in range(10)]), 8.0),
+              DrivingAgent(2, LanePath.from_waypoints([wp(50.0, 7.0)]), 8.0)]
+    actors = [car(1, 0.3, 0.2, 0.0, (5.0, 1.0)), car(2, 50.0, 9.0, 90.0, (0.0, 3.0))]
+    batch = _Batch(actors, agents, 50)
+    assert batch.count.tolist() == [10, 1] and batch.xy.shape == (2, 10, 2)
+    assert batch.pos.tolist() == [[0.3, 0.2], [50.0, 9.0]]
+    assert batch.speed == pytest.approx([5.0, 3.0]) and batch.half.tolist() == [[2.4, 1.0], [2.4, 1.0]]
+    assert batch.s_self == pytest.approx([0.3, 0.0])
+    assert batch.s[0] == pytest.approx(np.arange(10) - 0.3)
+    assert batch.s[1, 0] == 0.0 and (batch.s[1, 1:] == _Batch.FAR).all() and (batch.xy[1, 1:] == _Batch.FAR).all()
+    assert batch.path_yaw[1, 0] == pytest.approx(math.pi / 2)
+    _, _, arc, _ = agents[0].path.arrays()
+    assert arc.tolist() == list(range(10)) and not arc.flags.writeable

@@ -251,3 +251,25 @@ def test_same_seed_same_snapshots(flat_town):
     assert a == b
     c = _scripted_run(flat_town, 6)
     assert a[-1] != c[-1]
+
+
+def test_collisions_see_actors_spawned_frozen_and_destroyed_between_ticks(flat_world):
+    # the colliding movers are remembered between ticks: a car spawned, frozen or destroyed later must count as the
+    # world is now (a frozen car stands 8 m ahead of another driving at it at 5 m/s: they meet after ~0.6 s)
+    a = flat_world.spawn_actor(CAR, _at(0))
+    for _ in range(5):
+        flat_world.tick()
+    b = flat_world.spawn_actor(OTHER, _at(8.0))
+    flat_world.set_simulate_physics(b, False)
+    hits = []
+    for _ in range(20):
+        flat_world.set_target_velocity(a, Vector3D(5.0, 0.0, 0.0))
+        hits += [(e.actor_id, e.other_id) for e in flat_world.tick().collisions]
+    assert (a, b) in hits and (b, a) in hits
+    flat_world.destroy_actor(b)
+    c = flat_world.spawn_actor(OTHER, _at(20.0))
+    late = []
+    for _ in range(80):
+        flat_world.set_target_velocity(a, Vector3D(5.0, 0.0, 0.0))
+        late += [(e.actor_id, e.other_id) for e in flat_world.tick().collisions]
+    assert (a, c) in late and not [h for h in late if b in h]

@@ -14,6 +14,21 @@ from b2d_data.sim.builtin.sensors.renderer import CameraView, Renderer
 from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh
 
 
+#: Two triangles of ground from 2 to 60 m ahead of the camera.
+GROUND = np.array([[[2.0, -30.0, 0.0], [60.0, -30.0, 0.0], [60.0, 30.0, 0.0]],
+                   [[2.0, -30.0, 0.0], [60.0, 30.0, 0.0], [2.0, 30.0, 0.0]]])  # fmt: skip
+
+
+def _view(width: int, height: int) -> CameraView:
+    return CameraView(Transform(Location(0.0, 0.0, 1.6), Rotation(pitch=-10.0)).matrix(), 90.0, width, height)
+
+
+def _set_ground(renderer: Renderer, colour: tuple[int, int, int], tag: int) -> None:
+    """The scene: nothing but the ground, of one colour and tag."""
+    renderer.set_dynamic(TriangleMesh.empty())
+    renderer.set_static(TriangleMesh.from_triangles(GROUND, colour, tag, material=Material.MATTE))
+
+
 def test_a_block_comes_back_only_when_no_view_of_it_is_left():
     pool = HostPool(keep=2)
     first = pool.take(100)
@@ -39,17 +54,13 @@ def test_a_held_frame_keeps_its_pixels_when_the_next_one_is_rendered(pixel_buffe
     renderer = Renderer(depth8=True, pixel_buffer=pixel_buffer)
     try:
         assert (renderer._mapped is not None) is pixel_buffer
-        view = CameraView(Transform(Location(0.0, 0.0, 1.6), Rotation(pitch=-10.0)).matrix(), 90.0, 64, 36)
-        light = Lighting.from_weather(WeatherParameters(sun_altitude_angle=60.0))
-        ground = np.array([[[2.0, -30.0, 0.0], [60.0, -30.0, 0.0], [60.0, 30.0, 0.0]],
-                           [[2.0, -30.0, 0.0], [60.0, 30.0, 0.0], [2.0, 30.0, 0.0]]])  # fmt: skip
-        renderer.set_dynamic(TriangleMesh.empty())
-        renderer.set_static(TriangleMesh.from_triangles(ground, (200, 30, 30), 7, material=Material.MATTE))
+        view, light = _view(64, 36), Lighting.from_weather(WeatherParameters(sun_altitude_angle=60.0))
+        _set_ground(renderer, (200, 30, 30), 7)
         red = renderer.render([view], light)[0]
         if pixel_buffer:  # the arrays view mapped memory
             assert any(np.shares_memory(red.depth, block) for _, block in renderer._mapped._blocks)
         kept = red.rgb.copy(), red.depth.copy(), red.semantic.copy()
-        renderer.set_static(TriangleMesh.from_triangles(ground, (30, 30, 200), 1, material=Material.MATTE))
+        _set_ground(renderer, (30, 30, 200), 1)
         blue = renderer.render([view], light)[0]
         assert not np.array_equal(blue.semantic, kept[2])  # the second scene differs where the ground shows
         for held, copy in zip((red.rgb, red.depth, red.semantic), kept):
@@ -64,13 +75,8 @@ def test_a_held_frame_keeps_its_pixels_when_the_next_one_is_rendered(pixel_buffe
 def test_mapped_memory_outlives_a_closed_renderer_while_viewed():
     """A frame's arrays stay readable after the renderer closes; its context goes once they are gone."""
     renderer = Renderer(depth8=True, pixel_buffer=True)
-    view = CameraView(Transform(Location(0.0, 0.0, 1.6), Rotation(pitch=-10.0)).matrix(), 90.0, 32, 18)
-    light = Lighting.from_weather(WeatherParameters(sun_altitude_angle=60.0))
-    ground = np.array([[[2.0, -30.0, 0.0], [60.0, -30.0, 0.0], [60.0, 30.0, 0.0]],
-                       [[2.0, -30.0, 0.0], [60.0, 30.0, 0.0], [2.0, 30.0, 0.0]]])  # fmt: skip
-    renderer.set_dynamic(TriangleMesh.empty())
-    renderer.set_static(TriangleMesh.from_triangles(ground, (200, 30, 30), 7, material=Material.MATTE))
-    frame = renderer.render([view], light)[0]
+    _set_ground(renderer, (200, 30, 30), 7)
+    frame = renderer.render([_view(32, 18)], Lighting.from_weather(WeatherParameters(sun_altitude_angle=60.0)))[0]
     semantic = frame.semantic.copy()
     assert 7 in semantic
     renderer.close()

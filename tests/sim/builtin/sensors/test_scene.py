@@ -93,14 +93,22 @@ def test_lamps_glow_at_night_only_when_lit():
     assert (night.materials == Material.EMISSIVE).sum() > 0
 
 
-def test_traffic_light_head_fills_its_level_box():
-    head = Transform(Location(10.0, 5.0, 3.0), Rotation(yaw=90.0))
-    info = TrafficLightInfo(
-        id=900, transform=Transform(Location(10.0, 5.0, 0.0), Rotation(yaw=0.0)), state=TrafficLightState.GREEN,
+#: The head of the traffic light :func:`_light_info` makes.
+HEAD = Transform(Location(10.0, 5.0, 3.0), Rotation(yaw=90.0))
+
+
+def _light_info(state: TrafficLightState) -> TrafficLightInfo:
+    """A traffic light at (10, 5) whose head (:data:`HEAD`) faces +y."""
+    return TrafficLightInfo(
+        id=900, transform=Transform(Location(10.0, 5.0, 0.0), Rotation(yaw=0.0)), state=state,
         trigger_volume=BoundingBox(Location(0.0, 8.0, 1.0), Location(2.0, 1.5, 1.0)), stop_waypoints=(),
         affected_lane_waypoints=(), group_id=0, opendrive_id="1",
-        level_bbox=BoundingBox(head.location, Location(0.25, 0.3, 0.6), head.rotation), level_bbox_transform=head,
+        level_bbox=BoundingBox(HEAD.location, Location(0.25, 0.3, 0.6), HEAD.rotation), level_bbox_transform=HEAD,
     )  # fmt: skip
+
+
+def test_traffic_light_head_fills_its_level_box():
+    info = _light_info(TrafficLightState.GREEN)
     fixture = fixture_of_light(info)
     static = fixture_static_mesh([fixture])
     heads = static.vertices[static.tags == T.TRAFFIC_LIGHT].reshape(-1, 3)
@@ -179,13 +187,7 @@ def test_the_tick_meshes_are_the_merged_actor_shapes_and_lamps():
     from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh, merge
     from b2d_data.sim.builtin.sensors.synthetic import snapshot_of
 
-    head = Transform(Location(10.0, 5.0, 3.0), Rotation(yaw=90.0))
-    light = TrafficLightInfo(
-        id=900, transform=Transform(Location(10.0, 5.0, 0.0), Rotation(yaw=0.0)), state=TrafficLightState.RED,
-        trigger_volume=BoundingBox(Location(0.0, 8.0, 1.0), Location(2.0, 1.5, 1.0)), stop_waypoints=(),
-        affected_lane_waypoints=(), group_id=0, opendrive_id="1",
-        level_bbox=BoundingBox(head.location, Location(0.25, 0.3, 0.6), head.rotation), level_bbox_transform=head,
-    )  # fmt: skip
+    light = _light_info(TrafficLightState.RED)
     scene = suite.SensorScene()
     empty = StaticScene(TriangleMesh.empty(), np.zeros((0, 3)), np.zeros(3), np.ones(3))
     renderer, caster = _Recorder(), _Recorder()

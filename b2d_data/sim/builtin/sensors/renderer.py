@@ -486,8 +486,9 @@ class _Targets:
 
 
 class _Readback:
-    """The read-backs of one frame: straight into fresh arrays, or all into one pixel-pack buffer and then copied
-    out with a single wait for the GPU.
+    """The read-backs of one frame: straight into host arrays, or all into one pixel-pack buffer with a single wait
+    for the GPU: a buffer mapped into host memory (``MappedPool``), which the arrays then view, or else a driver
+    buffer copied out.
 
     With many route processes sharing a GPU, every synchronous glReadPixels waits for the process's context to get
     the GPU again; a frame of seven cameras made 31 such waits. Through the buffer the reads are queued behind the

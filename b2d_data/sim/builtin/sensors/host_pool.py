@@ -21,9 +21,21 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-#: References to a block that only the pool holds, as ``sys.getrefcount`` counts them in :meth:`HostPool.take`: the
-#: pool's list, the ``block`` name there, and the call's own argument.
-_UNVIEWED = 3
+#: References to a block that only the pool holds, as ``sys.getrefcount`` counts them in :func:`_unviewed`: the
+#: pool's list and the call's own argument.
+_UNVIEWED = 2
+
+
+def _unviewed(blocks: list[np.ndarray], nbytes: int) -> tuple[int | None, list[int]]:
+    """The index of the first block of ``blocks`` that nothing but the list holds and that has room for ``nbytes``
+    (or ``None``), and the indices of the unheld ones too small, looked at before it."""
+    small = []
+    for index in range(len(blocks)):
+        if sys.getrefcount(blocks[index]) <= _UNVIEWED:
+            if blocks[index].nbytes >= nbytes:
+                return index, small
+            small.append(index)
+    return None, small
 
 
 class HostPool:
@@ -35,20 +47,16 @@ class HostPool:
 
     def take(self, nbytes: int) -> np.ndarray:
         """A uint8 array of ``nbytes`` that no earlier frame's array views (its contents are stale)."""
-        free = []
-        for index in range(len(self._blocks)):
-            block = self._blocks[index]
-            if sys.getrefcount(block) <= _UNVIEWED:
-                if block.nbytes >= nbytes:
-                    return block[:nbytes]
-                free.append(index)
+        fits, small = _unviewed(self._blocks, nbytes)
+        if fits is not None:
+            return self._blocks[fits][:nbytes]
         block = np.empty(max(nbytes, 1), np.uint8)
         if len(self._blocks) < self.keep:
             self._blocks.append(block)
-        elif free:
+        elif small:
             # A free block that is too small (the rig grew) gives its place to the new one; where every block is
             # still viewed (frames queued for writing) the new one is not kept.
-            self._blocks[free[0]] = block
+            self._blocks[small[0]] = block
         return block[:nbytes]
 
 
@@ -112,7 +120,9 @@ class MappedPool:
     def __init__(self, ctx: moderngl.Context, keep: int = 3) -> None:
         self.ctx = ctx
         self.keep = keep
-        self._blocks: list[tuple[moderngl.Buffer, np.ndarray]] = []
+        # Parallel lists: each buffer and its mapped memory.
+        self._buffers: list[moderngl.Buffer] = []
+        self._blocks: list[np.ndarray] = []
 
     @staticmethod
     def supported(ctx: moderngl.Context) -> bool:
@@ -123,31 +133,30 @@ class MappedPool:
 
     def take(self, nbytes: int) -> tuple[moderngl.Buffer, np.ndarray] | None:
         """A mapped pixel-pack buffer of at least ``nbytes`` and its memory as a uint8 array, or ``None``."""
-        free = []
-        for index in range(len(self._blocks)):
-            buffer, block = self._blocks[index]
-            if sys.getrefcount(block) <= _UNVIEWED:
-                if block.nbytes >= nbytes:
-                    return buffer, block[:nbytes]
-                free.append(index)
-        if len(self._blocks) >= self.keep and not free:
+        fits, small = _unviewed(self._blocks, nbytes)
+        if fits is not None:
+            return self._buffers[fits], self._blocks[fits][:nbytes]
+        if len(self._blocks) >= self.keep and not small:
             return None
-        if free:  # a free block that is too small (the rig grew) gives its place to the new one
-            self._unmap(*self._blocks.pop(free[0]))
-        created = self._map(max(nbytes, 1))
-        self._blocks.append(created)
-        return created[0], created[1][:nbytes]
+        if small:  # a free block that is too small (the rig grew) gives its place to the new one
+            self._unmap(self._buffers.pop(small[0]))
+            self._blocks.pop(small[0])
+        buffer, block = self._map(max(nbytes, 1))
+        self._buffers.append(buffer)
+        self._blocks.append(block)
+        return buffer, block[:nbytes]
 
     def in_use(self) -> bool:
         """Whether some array still views one of the blocks."""
-        return any(sys.getrefcount(block) > _UNVIEWED for _, block in self._blocks)
+        return any(sys.getrefcount(self._blocks[index]) > _UNVIEWED for index in range(len(self._blocks)))
 
     def release(self) -> bool:
         """Unmap and delete every buffer, unless one is still viewed (then nothing is released: returns False)."""
         if self.in_use():
             return False
-        while self._blocks:
-            self._unmap(*self._blocks.pop())
+        while self._buffers:
+            self._unmap(self._buffers.pop())
+        self._blocks.clear()
         return True
 
     def _map(self, nbytes: int) -> tuple[moderngl.Buffer, np.ndarray]:
@@ -167,7 +176,7 @@ class MappedPool:
         block = np.ctypeslib.as_array((ctypes.c_ubyte * nbytes).from_address(address))
         return self.ctx.external_buffer(name[0], nbytes), block
 
-    def _unmap(self, buffer: moderngl.Buffer, block: np.ndarray) -> None:
+    def _unmap(self, buffer: moderngl.Buffer) -> None:
         calls = _buffer_calls()
         assert calls is not None
         name = (ctypes.c_uint * 1)(buffer.glo)

@@ -255,9 +255,8 @@ class SensorScene:
         its own (the surround and top-down cameras in one batch measured 3–8 % fewer frames/s on the 2-core
         machine).
         """
-        assert self.renderer is not None
-        dynamic = tick.dynamic if tick.dynamic is not None else merge([m for _, m in tick.actor_parts] + [tick.lamps])
-        self.renderer.set_dynamic(dynamic)
+        assert self.renderer is not None and tick.dynamic is not None  # _prepare merges it wherever there is a renderer
+        self.renderer.set_dynamic(tick.dynamic)
         # The sun's shadows are drawn around the ego, once per tick whichever batch comes first.
         lights, centre = tick.vehicle_lights, tick.ego.transform.location.to_array()
         if self.renderer.hardware:

@@ -30,6 +30,7 @@ from b2d_data.sim.builtin.sensors import shaders
 from b2d_data.sim.builtin.sensors.host_pool import HostPool, MappedPool
 from b2d_data.sim.builtin.sensors.lighting import FOG_BASE_HEIGHT, Lighting
 from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, grid_triangles
+from b2d_data.sim.builtin.sensors.texture_pack import TexturePacker
 from b2d_data.sim.builtin.sensors.vehicle_lights import MAX_LIGHTS, NO_BLOCKER, SpotLights, beams_in_view
 
 log = logging.getLogger(__name__)
@@ -492,7 +493,8 @@ class _Readback:
 
     With many route processes sharing a GPU, every synchronous glReadPixels waits for the process's context to get
     the GPU again; a frame of seven cameras made 31 such waits. Through the buffer the reads are queued behind the
-    draws and the frame waits once.
+    draws and the frame waits once. With a ``packer`` (mapped buffers only), the one-byte targets go into a GPU
+    buffer by a compute pass instead of glReadPixels, and that buffer is copied to the mapped one.
     """
 
     #: Offsets of the reads in the buffer are rounded up to this many bytes (aligned float32 views).
@@ -501,12 +503,14 @@ class _Readback:
     ARRAY_TYPE = {"f1": np.uint8, "u1": np.uint8, "f4": np.float32}
 
     def __init__(self, ctx: moderngl.Context, buffer: moderngl.Buffer | None, use_buffer: bool = True,
-                 host: HostPool | None = None, mapped: MappedPool | None = None) -> None:  # fmt: skip
+                 host: HostPool | None = None, mapped: MappedPool | None = None,
+                 packer: TexturePacker | None = None) -> None:  # fmt: skip
         self.ctx = ctx
         self.use_buffer = use_buffer
         self.buffer = buffer
         self.host = host or HostPool(keep=0)
         self.mapped = mapped
+        self.packer = packer
         self._reads: list[tuple[moderngl.Framebuffer, int, tuple[int, ...], str, int]] = []
         self._size = 0
 
@@ -529,8 +533,20 @@ class _Readback:
         if taken is not None:
             # Straight into mapped host memory: one wait for the GPU, then the arrays view what it wrote.
             buffer, mapped = taken
-            for fbo, attachment, shape, dtype, offset in self._reads:
-                self._read(fbo, attachment, shape, dtype, buffer, offset)
+            if self.packer is None:
+                for fbo, attachment, shape, dtype, offset in self._reads:
+                    self._read(fbo, attachment, shape, dtype, buffer, offset)
+            else:
+                # One-byte targets packed by a compute pass, the rest read by glReadPixels, all into a GPU buffer
+                # that is then copied to the mapped one at once.
+                self.packer.begin(self._size)
+                for fbo, attachment, shape, dtype, offset in self._reads:
+                    texture = fbo.color_attachments[attachment]
+                    if self.packer.packable(texture, shape, dtype):
+                        self.packer.pack(texture, offset)
+                    else:
+                        self._read(fbo, attachment, shape, dtype, self.packer.device, offset)
+                self.packer.copy_to(buffer, self._size)
             self.ctx.finish()
             return [self._view(mapped, shape, dtype, offset) for _, _, shape, dtype, offset in self._reads]
         # One block of host memory for the frame: its arrays are views of it.
@@ -599,6 +615,7 @@ class Renderer:
         self, near: float = 0.05, far: float = 1500.0, tile_size: float = 48.0, depth8: bool = False,
         jpeg_planes: JpegPlanes = "off", packed: bool | None = None, pixel_buffer: bool | None = None,
         shadows: bool = True, shadow_size: int | None = None, cull_facades: bool = True, png_rows: bool = False,
+        pack_reads: bool | None = None,
     ) -> None:
         self.ctx = create_gl_context()
         # uint8 depth (what the depth PNG stores, rounded on the GPU): a quarter of the float target's read-back.
@@ -638,6 +655,16 @@ class Renderer:
         self._host = HostPool()
         # With a pixel buffer, read-backs land in buffers mapped into host memory where the driver can (GL 4.4).
         self._mapped = MappedPool(self.ctx) if self.pixel_buffer and MappedPool.supported(self.ctx) else None
+        # One-byte targets read back by a compute pass and a buffer copy (texture_pack.py): by default on a hardware
+        # GPU with mapped buffers, where glReadPixels converts on the few graphics units; on llvmpipe the pass would
+        # run on the CPU, slower than glReadPixels' copy.
+        can_pack = self._mapped is not None and self.ctx.version_code >= 430
+        if pack_reads and not can_pack:
+            raise RuntimeError(f"pack_reads needs mapped read-back buffers and OpenGL 4.3 compute shaders; "
+                               f"{self.gl_renderer} offers OpenGL {self.ctx.version_code}, "
+                               f"pixel_buffer={self.pixel_buffer}")  # fmt: skip
+        self.pack_reads = can_pack and (self.hardware if pack_reads is None else pack_reads)
+        self._packer = TexturePacker(self.ctx) if self.pack_reads else None
         self._unpack_programs: dict[tuple[bool, bool], moderngl.ComputeShader] = {}
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
@@ -1096,7 +1123,7 @@ class Renderer:
                 self._unpack(targets)
             if targets.planes:
                 self._convert_planes(targets)
-        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer, self._host, self._mapped)
+        reads = _Readback(self.ctx, self._pack_buffer, self.pixel_buffer, self._host, self._mapped, self._packer)
         for view, targets in zip(views, drawn):
             h, w = view.height, view.width
             if targets.planes:
@@ -1152,6 +1179,8 @@ class Renderer:
             if self._pack_buffer is not None:
                 self._pack_buffer.release()
                 self._pack_buffer = None
+            if self._packer is not None:
+                self._packer.release()
             mapped_free = self._mapped is None or self._mapped.release()
         if mapped_free:
             self.ctx.release()

@@ -18,6 +18,7 @@ from b2d_data.sim.builtin.sensors import suite as suite_module
 from b2d_data.sim.builtin.sensors.map_mesh import build_static_scene
 from b2d_data.sim.builtin.sensors.renderer import Renderer
 from b2d_data.sim.builtin.sensors.suite import SensorSuite
+from b2d_data.sim.builtin.sensors.texture_pack import TexturePacker
 from b2d_data.sim.builtin.sensors.synthetic import crossroads_layout, snapshot_of
 
 from .test_determinism_weather import CONFIG, NOON, _actors
@@ -31,14 +32,21 @@ WEATHERS = {
 }
 
 
-def _capture(monkeypatch: pytest.MonkeyPatch, packed: bool, planes: str, pixel_buffer: bool = False,
-             png_rows: bool = False) -> dict[str, dict]:  # fmt: skip
-    monkeypatch.setattr(suite_module, "Renderer", functools.partial(Renderer, packed=packed, pixel_buffer=pixel_buffer))
+def _suite(monkeypatch: pytest.MonkeyPatch, packed: bool, planes: str, pixel_buffer: bool = False,
+           png_rows: bool = False, pack_reads: bool = False) -> SensorSuite:  # fmt: skip
+    monkeypatch.setattr(suite_module, "Renderer", functools.partial(Renderer, packed=packed, pixel_buffer=pixel_buffer,
+                                                                    pack_reads=pack_reads))  # fmt: skip
     config = replace(CONFIG, jpeg_planes=planes, float_depth=False, png_rows=png_rows)
     suite = SensorSuite.from_scene(build_static_scene(crossroads_layout(), seed=3), config, seed=11)
+    assert suite.renderer.packed is packed and suite.renderer.pixel_buffer is pixel_buffer
+    assert suite.renderer.png_rows is (png_rows and packed) and suite.renderer.pack_reads is pack_reads
+    return suite
+
+
+def _capture(monkeypatch: pytest.MonkeyPatch, packed: bool, planes: str, pixel_buffer: bool = False,
+             png_rows: bool = False) -> dict[str, dict]:  # fmt: skip
+    suite = _suite(monkeypatch, packed, planes, pixel_buffer, png_rows)
     try:
-        assert suite.renderer.packed is packed and suite.renderer.pixel_buffer is pixel_buffer
-        assert suite.renderer.png_rows is (png_rows and packed)
         return {name: suite.capture(snapshot_of(_actors(), weather, frame=3), 1).cameras
                 for name, weather in WEATHERS.items()}  # fmt: skip
     finally:
@@ -105,6 +113,49 @@ def test_png_rows_hand_over_the_same_labels_as_scanlines(monkeypatch, pixel_buff
             tags, ids = read_instance_png(encode_instance_png(other.semantic, other.instance, packed=other.labels))
             np.testing.assert_array_equal(tags, frame.semantic)
             np.testing.assert_array_equal(ids, frame.instance)
+
+
+@pytest.mark.parametrize(("planes", "rows", "packs"), [("on", True, 6 + 6 + 3), ("off", False, 2 + 2)])
+def test_reads_packed_by_a_compute_pass_are_the_bytes_of_glreadpixels(monkeypatch, planes, rows, packs):
+    """``pack_reads``: the one-byte targets go through ``TexturePacker`` (a compute pass and one buffer copy) and the
+    frame's arrays hold exactly the bytes glReadPixels gives; other reads (RGBA colour, RGBA labels) still go through
+    glReadPixels, into the same GPU buffer."""
+    calls = []
+    pack = TexturePacker.pack
+    monkeypatch.setattr(TexturePacker, "pack", lambda self, texture, offset: (calls.append(texture.size),
+                                                                              pack(self, texture, offset)))  # fmt: skip
+    plain = _suite(monkeypatch, True, planes, pixel_buffer=True, png_rows=rows)
+    packed = _suite(monkeypatch, True, planes, pixel_buffer=True, png_rows=rows, pack_reads=True)
+    try:
+        for weather in WEATHERS.values():  # one frame at a time: the mapped blocks are free again for the next
+            snapshot = snapshot_of(_actors(), weather, frame=3)
+            cameras = plain.capture(snapshot, 1).cameras
+            assert not calls
+            others = packed.capture(snapshot, 1).cameras
+            # With planes and scanlines every read (front, back: 3 planes + depth, labels, tags rows; top-down: 3
+            # planes); without, only the labelled cameras' depth and tag targets (colour and labels are RGBA).
+            assert len(calls) == packs
+            calls.clear()
+            for cam, frame in cameras.items():
+                other = others[cam]
+                for field in ("rgb", "depth", "semantic", "instance", "labels"):
+                    a, b = getattr(frame, field), getattr(other, field)
+                    assert (a is None) == (b is None), (weather, cam, field)
+                    if a is not None:
+                        np.testing.assert_array_equal(a, b, err_msg=f"{weather} {cam} {field}")
+                for a, b in zip(frame.jpeg_planes or (), other.jpeg_planes or (), strict=True):
+                    np.testing.assert_array_equal(a, b, err_msg=f"{weather} {cam} planes")
+                if rows and frame.depth is not None:  # the scanlines' filter bytes came through too
+                    assert png_rows(other.depth) is not None and png_rows(other.labels) is not None
+            del cameras, others, frame, other, a, b
+    finally:
+        plain.close()
+        packed.close()
+
+
+def test_pack_reads_need_mapped_buffers():
+    with pytest.raises(RuntimeError, match="pack_reads needs mapped read-back buffers"):
+        Renderer(depth8=True, pixel_buffer=False, pack_reads=True)
 
 
 def test_packed_targets_need_uint8_depth():

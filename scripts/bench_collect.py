@@ -381,6 +381,11 @@ def main() -> None:
             figures["route_share_of_wall"] = round(sum(r.duration for r in results) / (workers * wall), 3)
             figures["setup_s_per_route"] = round(
                 sum(r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
+            figures["rig_s_per_route"] = round(sum(r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
+            # The first route of a process builds the town's scene, later ones of the same town reuse it: the first
+            # quartile shows what mounting costs without the build.
+            figures["rig_s_first_quartile"] = round(
+                sorted(r.timings.get("attach_rig", 0.0) for r in results)[len(results) // 4], 2)
             figures.update(pipeline_frames=frames, pipeline_wall_s=round(wall, 2), pipeline_fps=frames / wall,
                            busy_cores=round(busy, 2), workers=workers,
                            encode_workers=base.resolved_encode_workers(), errors=errors)  # fmt: skip
@@ -459,7 +464,8 @@ def _report(f: dict[str, Any]) -> None:
         )
         print(f"  frame loops alone (route set-up left out): {f['loop_fps']:.2f} frames/s")
         per_frame = ", ".join(f"{k} {v:.1f}" for k, v in f["pipeline_ms_per_frame"].items())
-        print(f"  route process wall ms per frame: {per_frame}; set-up {f['setup_s_per_route']:.1f} s per route")
+        print(f"  route process wall ms per frame: {per_frame}; set-up {f['setup_s_per_route']:.1f} s per route, "
+              f"of which mounting the rig {f['rig_s_per_route']:.2f} s (first quartile {f['rig_s_first_quartile']:.2f} s)")
         print(f"  route processes spent {100 * f['route_share_of_wall']:.0f} % of the wall in routes (the rest: "
               "pool start-up, and the tail while the last routes finish)")
         if f["errors"]:

@@ -22,7 +22,7 @@ import numpy as np
 from b2d_data.sim.builtin.sensors.bvh import Bvh, build_bvh
 from b2d_data.sim.builtin.sensors.raycast import RayCaster, RayHits
 from b2d_data.sim.builtin.sensors.renderer import create_gl_context, is_hardware
-from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh
+from b2d_data.sim.builtin.sensors.scene_mesh import StaticCache, TriangleMesh
 
 log = logging.getLogger(__name__)
 
@@ -254,6 +254,7 @@ class GpuRayCaster:
             self._dynamic = _Layer(self.ctx)
         self._free: list[_Slot] = []
         self._slots: list[_Slot] = []
+        self._statics: StaticCache[_Layer] = StaticCache(self._upload_static, _Layer.release)
         self.set_static(static if static is not None else TriangleMesh.empty())
         self.set_dynamic(TriangleMesh.empty())
 
@@ -263,10 +264,15 @@ class GpuRayCaster:
         return self.ctx.info.get("GL_RENDERER", "")
 
     def set_static(self, mesh: TriangleMesh) -> None:
-        """Build and upload the static scene (once per map)."""
+        """Build and upload the static scene (once per map: the last two stay on the GPU, ``StaticCache``)."""
+        self._static = self._statics.get(mesh)
+
+    def _upload_static(self, mesh: TriangleMesh) -> _Layer:
         bvh = build_bvh(mesh.vertices)
         with self.ctx:
-            self._static.upload(mesh, bvh)
+            layer = _Layer(self.ctx)
+            layer.upload(mesh, bvh)
+        return layer
 
     def set_dynamic(self, mesh: TriangleMesh) -> None:
         """Build and upload the dynamic scene (once per tick); no leaf spans two actors."""
@@ -362,7 +368,7 @@ class GpuRayCaster:
     def close(self) -> None:
         """Release the GPU buffers (and the context when the caster opened it)."""
         with self.ctx:
-            self._static.release()
+            self._statics.clear()
             self._dynamic.release()
             for slot in self._slots:
                 slot.release()

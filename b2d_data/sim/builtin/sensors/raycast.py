@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from embreex import mesh_construction, rtcore, rtcore_scene
 
-from b2d_data.sim.builtin.sensors.scene_mesh import TriangleMesh
+from b2d_data.sim.builtin.sensors.scene_mesh import StaticCache, TriangleMesh
 
 _DEVICE: list[rtcore.EmbreeDevice] = []
 
@@ -88,15 +88,16 @@ class RayCaster:
     """Nearest-hit queries against static + dynamic triangle meshes."""
 
     def __init__(self, static: TriangleMesh | None = None) -> None:
-        self._static = _Layer(static if static is not None else TriangleMesh.empty())
+        self._statics: StaticCache[_Layer] = StaticCache(_Layer)
+        self._static = self._statics.get(static if static is not None else TriangleMesh.empty())
         self._dynamic = _Layer(TriangleMesh.empty())
         # The last dynamic mesh's distinct vertices: from tick to tick the same actors repeat the same corners, so
         # the pattern is checked against the new vertices (a gather) and worked out afresh only when it fails.
         self._shared: SharedVertices | None = None
 
     def set_static(self, mesh: TriangleMesh) -> None:
-        """Build the static scene (once per map)."""
-        self._static = _Layer(mesh)
+        """Build the static scene (once per map: the last two stay built, ``StaticCache``)."""
+        self._static = self._statics.get(mesh)
 
     def set_dynamic(self, mesh: TriangleMesh) -> None:
         """Rebuild the dynamic scene (once per tick)."""
@@ -140,5 +141,6 @@ class RayCaster:
 
     def close(self) -> None:
         """Drop the scenes (the GPU caster's counterpart releases its context)."""
+        self._statics.clear()
         self._static = _Layer(TriangleMesh.empty())
         self._dynamic = _Layer(TriangleMesh.empty())

@@ -29,7 +29,7 @@ from b2d_data.format.record import CameraFrame
 from b2d_data.sim.builtin.sensors import shaders
 from b2d_data.sim.builtin.sensors.host_pool import HostPool, MappedPool
 from b2d_data.sim.builtin.sensors.lighting import FOG_BASE_HEIGHT, Lighting
-from b2d_data.sim.builtin.sensors.scene_mesh import Material, TriangleMesh, grid_triangles
+from b2d_data.sim.builtin.sensors.scene_mesh import Material, StaticCache, TriangleMesh, grid_triangles
 from b2d_data.sim.builtin.sensors.texture_pack import TexturePacker
 from b2d_data.sim.builtin.sensors.vehicle_lights import MAX_LIGHTS, NO_BLOCKER, SpotLights, beams_in_view
 
@@ -426,6 +426,20 @@ def noise_texture(size: int = 256, seed: int = 7) -> np.ndarray:
     return out
 
 
+@dataclass
+class _StaticUpload:
+    """A static scene on the GPU: vertices, indices, and its tiles for culling."""
+
+    vbo: moderngl.Buffer
+    ibo: moderngl.Buffer
+    culling: _Culling
+    triangles: int
+
+    def release(self) -> None:
+        self.vbo.release()
+        self.ibo.release()
+
+
 class _Targets:
     """Colour (and, for labelled cameras, depth, tag and id) targets plus a depth buffer of one resolution."""
 
@@ -683,6 +697,8 @@ class Renderer:
         self._lightmap = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint8).tobytes(), dtype="f1")
         self._lightmap_rect = (0.0, 0.0, 1.0, 1.0)
         self.static_triangles = 0
+        self._static: _StaticUpload | None = None
+        self._statics: StaticCache[_StaticUpload] = StaticCache(self._upload_static, _StaticUpload.release)
         # The sun's shadow map, drawn once per frame (the first render after the scene, actors or sun changed) and
         # read by every camera of it. llvmpipe draws a quarter of the texels: its shadow pass costs CPU.
         self.shadows = shadows
@@ -750,21 +766,27 @@ class Renderer:
     # ------------------------------------------------------------------------------------------ scene
     @_current
     def set_static(self, mesh: TriangleMesh) -> None:
-        """Upload the static scene, batched by material and ground tile (for culling)."""
+        """Upload the static scene, batched by material and ground tile (for culling); the last two scenes stay on
+        the GPU (``StaticCache``), and setting one of them again uploads nothing."""
+        upload = self._statics.get(mesh)
+        if upload is self._static:
+            return
+        self._static = upload
+        self._static_culling = upload.culling
+        self._drop_vaos("static")
+        self._static_vbo, self._static_ibo = upload.vbo, upload.ibo
+        self.static_triangles = upload.triangles
+        self._scene_version += 1
+
+    def _upload_static(self, mesh: TriangleMesh) -> _StaticUpload:
         mesh, batches = _batch_mesh(mesh, self.tile_size)
-        self._static_culling = _Culling(batches)
         # Drawn by index: the same triangles in the same order (the tiles' vertex ranges become index ranges), but a
         # vertex shared by neighbouring triangles is shaded once. About half of a town's vertices are shared, and an
         # H100 runs vertex shaders on the few SMs that rasterise.
         data, indices = shared_vertices(pack_vertices(mesh))
-        self._drop_vaos("static")
-        for buffer in (self._static_vbo, self._static_ibo):
-            if buffer is not None:
-                buffer.release()
-        self._static_vbo = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * VERTEX_DTYPE.itemsize)
-        self._static_ibo = self.ctx.buffer(indices.tobytes() if len(indices) else b"\0" * 4)
-        self.static_triangles = len(mesh)
-        self._scene_version += 1
+        vbo = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * VERTEX_DTYPE.itemsize)
+        ibo = self.ctx.buffer(indices.tobytes() if len(indices) else b"\0" * 4)
+        return _StaticUpload(vbo, ibo, _Culling(batches), len(mesh))
 
     @_current
     def set_lightmap(self, image: np.ndarray, origin: tuple[float, float], size: tuple[float, float]) -> None:

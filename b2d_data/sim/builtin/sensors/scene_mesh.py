@@ -7,12 +7,17 @@ Embree as a (T, 3, 3) array, so the camera images and the LiDAR see exactly the 
 
 from __future__ import annotations
 
+import hashlib
 import math
-from collections.abc import Iterable, Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Generic, TypeVar
 
 import numpy as np
+
+T = TypeVar("T")
 
 
 class Material(IntEnum):
@@ -125,6 +130,50 @@ class TriangleMesh:
             return np.zeros(3), np.zeros(3)
         flat = self.vertices.reshape(-1, 3)
         return flat.min(axis=0).astype(np.float64), flat.max(axis=0).astype(np.float64)
+
+
+def mesh_digest(mesh: TriangleMesh) -> bytes:
+    """A fingerprint of every array of ``mesh`` (shapes, types and bytes): equal digests, the same mesh."""
+    h = hashlib.blake2b(digest_size=16)
+    for array in (mesh.vertices, mesh.normals, mesh.colors, mesh.tags, mesh.instance_ids, mesh.materials):
+        h.update(f"{array.dtype.str}{array.shape}".encode())
+        h.update(np.ascontiguousarray(array).data)
+    return h.digest()
+
+
+class StaticCache(Generic[T]):
+    """What a consumer built from its last ``keep`` static meshes (GPU buffers, a tree), found by ``mesh_digest``.
+
+    A suite sets the town's bare scene, then the scene with the fixtures its first snapshot shows; a renderer or caster
+    kept for the next route (kept_rig.py) gets both again and builds neither twice.
+    """
+
+    def __init__(self, build: Callable[[TriangleMesh], T], release: Callable[[T], None] | None = None,
+                 keep: int = 2) -> None:  # fmt: skip
+        self._build = build
+        self._release = release
+        self.keep = keep
+        self._items: OrderedDict[bytes, T] = OrderedDict()
+
+    def get(self, mesh: TriangleMesh) -> T:
+        """What was built from ``mesh`` (built now if no kept mesh has its arrays); the least recent goes past ``keep``."""
+        digest = mesh_digest(mesh)
+        item = self._items.get(digest)
+        if item is None:
+            item = self._items[digest] = self._build(mesh)
+            while len(self._items) > self.keep:
+                _, old = self._items.popitem(last=False)
+                if self._release is not None:
+                    self._release(old)
+        self._items.move_to_end(digest)
+        return item
+
+    def clear(self) -> None:
+        """Release everything kept."""
+        while self._items:
+            _, old = self._items.popitem()
+            if self._release is not None:
+                self._release(old)
 
 
 def merge(meshes: Iterable[TriangleMesh]) -> TriangleMesh:

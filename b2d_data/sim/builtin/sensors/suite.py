@@ -34,6 +34,7 @@ from b2d_data.sim.builtin.sensors.fixture_mesh import (
     fixtures_of_snapshot,
     lamp_mesh,
 )
+from b2d_data.sim.builtin.sensors import kept_rig
 from b2d_data.sim.builtin.sensors.imu_gnss import ImuGnss, geolocator_of
 from b2d_data.sim.builtin.sensors.lidar import Lidar, LidarSweep
 from b2d_data.sim.builtin.sensors.lighting import Lighting
@@ -169,14 +170,20 @@ class SensorScene:
     renderer: Renderer | None
     caster: RayCaster | GpuRayCaster | None
 
-    def _setup_scene(self, scene: StaticScene, renderer: Renderer | None, rays: bool, gpu_rays: str = "off") -> None:
+    def _setup_scene(self, scene: StaticScene, renderer: Renderer | None, rays: bool, gpu_rays: str = "off",
+                     caster: RayCaster | GpuRayCaster | None = None) -> None:  # fmt: skip
+        """Take ``renderer`` (and ``caster``: an earlier suite's, see kept_rig.py) for ``scene``."""
         self.scene = scene
         self.renderer = renderer
-        if self.renderer is not None and len(scene.lamps):
-            self.renderer.set_lightmap(*scene.lightmap())
+        if self.renderer is not None:
+            # Without lamps, the blank light-map a new renderer starts with (a kept one may hold another town's).
+            lightmap = scene.lightmap() if len(scene.lamps) else (np.zeros((1, 1), np.float32), (0.0, 0.0), (1.0, 1.0))
+            self.renderer.set_lightmap(*lightmap)
         # Building Embree's scenes costs time per tick: a rig without LiDAR or radar has no caster. With ``gpu_rays``
         # the rays are cast by a compute shader in the renderer's context: the same hits for a fraction of the CPU.
-        self.caster = make_ray_caster(gpu_rays, renderer.ctx if renderer is not None else None) if rays else None
+        if caster is None and rays:
+            caster = make_ray_caster(gpu_rays, renderer.ctx if renderer is not None else None)
+        self.caster = caster
         self.actor_meshes = ActorMeshBuilder()
         self.fixtures: list[Fixture] = []
         self._fixture_key: tuple | None = None
@@ -351,11 +358,21 @@ class SensorSuite(SensorScene):
         self._geolocate = geolocate
         cams = [c for c in config.cameras if c in CAMERA_BY_FOLDER]
         self._camera_specs = [CAMERA_BY_FOLDER[c] for c in cams]
-        renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes,  # type: ignore[arg-type]
-                             png_rows=config.png_rows) if self._camera_specs else None)  # fmt: skip
         # B2D_GPU_RAYS=off|on|gpu overrides the config (A/B measurements of a collection without code changes).
         gpu_rays = os.environ.get("B2D_GPU_RAYS", config.gpu_rays)
-        self._setup_scene(scene, renderer, rays=config.lidar or config.radar, gpu_rays=gpu_rays)
+        rays = config.lidar or config.radar
+        # The last closed suite's renderer and caster, where they were made the same way (kept_rig.py). The factory
+        # is part of the key: tests and benchmarks swap it for one with other arguments.
+        self._kept_key = (Renderer, not config.float_depth, config.jpeg_planes, config.png_rows,
+                          bool(self._camera_specs), rays, gpu_rays)  # fmt: skip
+        kept = kept_rig.take(self._kept_key)
+        if kept is not None:
+            renderer, caster = kept
+        else:
+            renderer = (Renderer(depth8=not config.float_depth, jpeg_planes=config.jpeg_planes,  # type: ignore[arg-type]
+                                 png_rows=config.png_rows) if self._camera_specs else None)  # fmt: skip
+            caster = None
+        self._setup_scene(scene, renderer, rays=rays, gpu_rays=gpu_rays, caster=caster)
         self.lidar = Lidar(LIDAR, config.lidar_azimuth_steps)
         specs = RADARS_V004 if config.radar_v004_mounts else RADARS_V0
         self.radars = [Radar(spec, i, seed) for i, spec in enumerate(specs)]
@@ -366,6 +383,14 @@ class SensorSuite(SensorScene):
         self._mounts = {c.sensor_id: c.mount.matrix() for c in (*CAMERAS, TOP_DOWN)}
         self._mounts.update({r.sensor_id: r.mount.matrix() for r in radar_specs})
         self._mounts[LIDAR.sensor_id] = LIDAR.mount.matrix()
+
+    def close(self) -> None:
+        """Stop the ray-casting thread and keep the renderer and caster for the process's next suite (kept_rig.py;
+        ``kept_rig.release()`` closes them)."""
+        self._pool.shutdown(wait=True)
+        if self.renderer is not None or self.caster is not None:
+            kept_rig.keep(self._kept_key, self.renderer, self.caster)
+        self.renderer = self.caster = None
 
     # ------------------------------------------------------------------------------------------ poses
     def sensor_poses(self, ego: ActorState) -> dict[str, np.ndarray]:

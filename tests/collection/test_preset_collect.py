@@ -66,6 +66,28 @@ def test_mini_plan_keeps_shipped_towns_that_hold_the_type_and_substitutes_the_re
         assert {t.route.scenario_type for t in sp.tasks} == {slot.scenario}
 
 
+def test_placement_side_by_side_gives_the_routes_of_one_process(tmp_path, monkeypatch):
+    """``place_all`` on a process pool: the same towns, routes and errors as every call in this process, and no
+    placement call left in this process (the probes of assign_towns included)."""
+    from b2d_data.collection import preset_plan as pp
+
+    calls = []
+    routes = pp._Placer.routes
+    monkeypatch.setattr(pp._Placer, "routes", lambda self, *a, **k: (calls.append(a), routes(self, *a, **k))[1])
+    monkeypatch.setattr(pp, "PARALLEL_FROM", 10**9)
+    one = plan_collection(CollectConfig(out=tmp_path / "one", preset="mini"))
+    assert len(calls) > 10  # probes and groups, here
+    calls.clear()
+    monkeypatch.setattr(pp, "PARALLEL_FROM", 1)
+    monkeypatch.setattr(pp.os, "cpu_count", lambda: 2)
+    pooled = plan_collection(CollectConfig(out=tmp_path / "pooled", preset="mini"))
+    assert calls == []
+    assert pooled.preset.towns == one.preset.towns and pooled.preset.errors == one.preset.errors
+    assert [(sp.group, [t.route for t in sp.tasks]) for sp in pooled.scenarios] == [
+        (sp.group, [t.route for t in sp.tasks]) for sp in one.scenarios
+    ]
+
+
 def test_resumed_plan_is_read_back_without_placement(mini_plan, monkeypatch):
     out, plan = mini_plan
 

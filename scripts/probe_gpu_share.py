@@ -83,12 +83,12 @@ def _worker(variant: str, town: str, frames: int, width: int, height: int, weath
     suite.close()
 
 
-def run(procs: int, variant: str, args: argparse.Namespace) -> tuple[float, float]:
-    """(frames/s over all processes, CPU ms per frame) of ``procs`` processes capturing at once."""
+def run_together(target: Any, args: tuple, procs: int, what: str) -> list[Any]:
+    """Start ``procs`` processes of ``target(*args, k, barrier, results)`` (k: the process's index; each waits at
+    the barrier, then puts one result); returns their results, or stops the run if one of them fails."""
     context = multiprocessing.get_context("spawn")
     barrier, results = context.Barrier(procs), context.Queue()
-    workers = [context.Process(target=_worker, args=(variant, args.town, args.frames, args.width, args.height,
-                                                     args.weather, k, barrier, results)) for k in range(procs)]  # fmt: skip
+    workers = [context.Process(target=target, args=(*args, k, barrier, results)) for k in range(procs)]
     for w in workers:
         w.start()
     got = []
@@ -99,9 +99,16 @@ def run(procs: int, variant: str, args: argparse.Namespace) -> tuple[float, floa
             if any(w.exitcode not in (None, 0) for w in workers):
                 for w in workers:
                     w.kill()
-                raise SystemExit(f"a capture process failed ({procs} processes, {variant})") from None
+                raise SystemExit(f"a process failed ({procs} processes, {what})") from None
     for w in workers:
         w.join()
+    return got
+
+
+def run(procs: int, variant: str, args: argparse.Namespace) -> tuple[float, float]:
+    """(frames/s over all processes, CPU ms per frame) of ``procs`` processes capturing at once."""
+    got = run_together(_worker, (variant, args.town, args.frames, args.width, args.height, args.weather), procs,
+                       variant)  # fmt: skip
     wall = max(g[0] for g in got)
     cpu = sum(g[1] for g in got) / (procs * args.frames)
     return procs * args.frames / wall, 1e3 * cpu

@@ -17,15 +17,14 @@ textures filled with noise. Each way is checked to deliver the same bytes as the
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import os
-import queue
 import time
 from typing import Any
 
 import numpy as np
 
 from b2d_data.sim.builtin.sensors.texture_pack import TexturePacker
+from probe_gpu_share import run_together  # scripts/ is the script's own folder
 
 MODES = ("pbo-mapped", "pbo-device", "pbo-device-copy", "packer")
 ALIGN = 64
@@ -130,23 +129,7 @@ def _worker(mode: str, width: int, height: int, frames: int, slot: int, barrier:
 
 def run(mode: str, procs: int, width: int, height: int, frames: int) -> tuple[float, float, float]:
     """(frames/s over all processes, CPU ms per frame, GPU ms of one frame alone) for ``procs`` processes."""
-    context = multiprocessing.get_context("spawn")
-    barrier, results = context.Barrier(procs), context.Queue()
-    workers = [context.Process(target=_worker, args=(mode, width, height, frames, k, barrier, results))
-               for k in range(procs)]  # fmt: skip
-    for w in workers:
-        w.start()
-    got = []
-    while len(got) < procs:
-        try:
-            got.append(results.get(timeout=5))
-        except queue.Empty:
-            if any(w.exitcode not in (None, 0) for w in workers):
-                for w in workers:
-                    w.kill()
-                raise SystemExit(f"a read-back process failed ({procs} processes, {mode})") from None
-    for w in workers:
-        w.join()
+    got = run_together(_worker, (mode, width, height, frames), procs, mode)
     wall = max(g[0] for g in got)
     return procs * frames / wall, 1e3 * sum(g[1] for g in got) / (procs * frames), min(g[2] for g in got)
 

@@ -22,6 +22,7 @@ from typing import Any
 
 
 from b2d_data.collection.job import CollectConfig, with_weather
+from b2d_data.collection.layout import usable_cores
 from b2d_data.collection.plan import (
     PLANNED_ROUTES_DIR,
     CollectError,
@@ -186,7 +187,7 @@ def place_all(towns: _Towns, seed: int, params: str, requests: Sequence[tuple[st
     Each call depends on its arguments alone, so the calls run side by side on ``processes`` processes (default: one
     per core) and give what one process would; placing base's 3000 routes took 4 min on one core of an H100 host.
     """
-    processes = min(processes or os.cpu_count() or 1, len(requests))
+    processes = min(processes or usable_cores(), len(requests))
     if processes <= 1 or len(requests) < PARALLEL_FROM:
         return [_place(towns.out, seed, params, *request) for request in requests]
     import multiprocessing

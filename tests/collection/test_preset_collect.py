@@ -79,7 +79,7 @@ def test_placement_side_by_side_gives_the_routes_of_one_process(tmp_path, monkey
     assert len(calls) > 10  # probes and groups, here
     calls.clear()
     monkeypatch.setattr(pp, "PARALLEL_FROM", 1)
-    monkeypatch.setattr(pp.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(pp, "usable_cores", lambda: 2)
     pooled = plan_collection(CollectConfig(out=tmp_path / "pooled", preset="mini"))
     assert calls == []
     assert pooled.preset.towns == one.preset.towns and pooled.preset.errors == one.preset.errors

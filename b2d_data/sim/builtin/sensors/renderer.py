@@ -547,17 +547,19 @@ class _Readback:
         if taken is not None:
             # Straight into mapped host memory: one wait for the GPU, then the arrays view what it wrote.
             buffer, mapped = taken
-            if self.packer is None:
+            packable = [self.packer is not None and self.packer.packable(fbo.color_attachments[attachment], shape, dtype)
+                        for fbo, attachment, shape, dtype, _ in self._reads]  # fmt: skip
+            if not any(packable):  # (an agent's RGB cameras: nothing to pack, no copy through a GPU buffer)
                 for fbo, attachment, shape, dtype, offset in self._reads:
                     self._read(fbo, attachment, shape, dtype, buffer, offset)
             else:
                 # One-byte targets packed by a compute pass, the rest read by glReadPixels, all into a GPU buffer
                 # that is then copied to the mapped one at once.
+                assert self.packer is not None
                 self.packer.begin(self._size)
-                for fbo, attachment, shape, dtype, offset in self._reads:
-                    texture = fbo.color_attachments[attachment]
-                    if self.packer.packable(texture, shape, dtype):
-                        self.packer.pack(texture, offset)
+                for (fbo, attachment, shape, dtype, offset), pack in zip(self._reads, packable):
+                    if pack:
+                        self.packer.pack(fbo.color_attachments[attachment], offset)
                     else:
                         self._read(fbo, attachment, shape, dtype, self.packer.device, offset)
                 self.packer.copy_to(buffer, self._size)

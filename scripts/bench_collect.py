@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import multiprocessing
 import os
 import tempfile
 import threading
@@ -53,6 +52,7 @@ from b2d_data.collection.layout import (
     raster_threads,
     single_thread_environment,
     single_thread_worker,
+    worker_context,
 )
 from b2d_data.collection.plan import plan_collection
 
@@ -280,8 +280,7 @@ def pipeline(
 ) -> tuple[int, float, float, list[Any]]:
     """Run ``tasks`` on ``workers`` processes; returns (frames, wall seconds, busy cores on average, results)."""
     single_thread_environment()
-    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
-    context = multiprocessing.get_context(method)
+    context = worker_context()
     reports = context.Queue()  # the workers' progress reports, not read here
     busy0, total0 = _busy_jiffies()
     t0 = time.perf_counter()

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import logging
-import multiprocessing
 import os
 import queue
 import signal
@@ -48,6 +47,7 @@ from b2d_data.closed_loop.route_process import (
 )
 from b2d_data.collection import run_log as rl
 from b2d_data.collection.corpus import corpus_lock
+from b2d_data.collection.layout import worker_context
 from b2d_data.collection.plan import route_seed
 from b2d_data.collection.progress import FrameReport, ProgressState
 from b2d_data.collection.towns import TownError, TownSource, route_town
@@ -293,9 +293,8 @@ class _Pool:
         self.settings = settings
         # forkserver: a route process starts from a clean server with the simulator's modules loaded once, never
         # from this process's threads and progress display; spawn where the platform has no fork server.
-        method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
-        self.context = multiprocessing.get_context(method)
-        if method == "forkserver":
+        self.context = worker_context()
+        if self.context.get_start_method() == "forkserver":
             self.context.set_forkserver_preload(["b2d_data.closed_loop.route_process", "b2d_data.sim.builtin.world"])
         self.reports = self.context.Queue()
         self.running: dict[str, tuple[Any, RouteTask, float]] = {}

@@ -36,6 +36,7 @@ from b2d_data.collection.layout import (
     single_thread_environment,
     single_thread_worker,
     take_gpu_slot,
+    worker_context,
 )
 from b2d_data.collection.plan import CollectError, RouteTask
 from b2d_data.collection.progress import FrameReport, FrameSink, set_frame_sink
@@ -199,15 +200,11 @@ class ProcessPoolBackend:
         on_frames: FrameSink | None = None,
         job: Callable[..., JobResult] = run_route_job,
     ) -> None:
-        import multiprocessing
-
         self.out, self.config, self.capacity, self.on_frames, self.job = out, config, workers, on_frames, job
         self._futures: dict[Future[JobResult], RouteTask] = {}
         #: Workers of broken pools, stopped (SIGTERM) by the pool itself; killed at close() if still alive.
         self._orphans: list[Any] = []
-        # spawn/forkserver: a worker never inherits the driver's threads (tqdm, GL) mid-state.
-        method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
-        self._context = multiprocessing.get_context(method)
+        self._context = worker_context()
         self._reports = self._context.Queue()
         #: The next GPU slot a new worker takes (round robin over the machine's GPUs, replacement workers included).
         self._gpu_slots = self._context.Value("i", 0)

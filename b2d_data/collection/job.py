@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from b2d_data.collection.disk_space import DISK_FULL, is_disk_full
+from b2d_data.collection.layout import worker_context
 from b2d_data.collection.progress import FrameReporter
 from b2d_data.collection.towns import TownSource, ensure_hdmap, load_map
 from b2d_data.codecs.format_info import read_format_info
@@ -221,10 +222,8 @@ def encoder_pool(workers: int) -> ProcessPoolExecutor | None:
         pool.shutdown(wait=False, cancel_futures=True)
         pool = None
     if pool is None:
-        # forkserver: workers never inherit the simulator's threads or GL contexts.
-        method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         pool = ProcessPoolExecutor(
-            workers, mp_context=multiprocessing.get_context(method), initializer=_encoder_init, initargs=(os.getpid(),)
+            workers, mp_context=worker_context(), initializer=_encoder_init, initargs=(os.getpid(),)
         )
         _ENCODERS[workers] = pool
         # When this process is itself a pool worker, its exit joins its children; the encoders live until their owner

@@ -11,6 +11,8 @@ frames/s on two cores.
 
 from __future__ import annotations
 
+import multiprocessing
+import multiprocessing.context
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +33,13 @@ class Layout:
 
     workers: int
     encode_workers: int
+
+
+def worker_context() -> multiprocessing.context.BaseContext:
+    """How every pool of worker processes starts: from a fork server, so that a worker never inherits this process's
+    threads (progress display, GL contexts) mid-state, or by spawn where the platform has no fork server."""
+    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    return multiprocessing.get_context(method)
 
 
 def count_gpus() -> int:

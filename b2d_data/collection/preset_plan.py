@@ -22,7 +22,7 @@ from typing import Any
 
 
 from b2d_data.collection.job import CollectConfig, with_weather
-from b2d_data.collection.layout import usable_cores
+from b2d_data.collection.layout import usable_cores, worker_context
 from b2d_data.collection.plan import (
     PLANNED_ROUTES_DIR,
     CollectError,
@@ -190,13 +190,11 @@ def place_all(towns: _Towns, seed: int, params: str, requests: Sequence[tuple[st
     processes = min(processes or usable_cores(), len(requests))
     if processes <= 1 or len(requests) < PARALLEL_FROM:
         return [_place(towns.out, seed, params, *request) for request in requests]
-    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     for town in dict.fromkeys(town for town, *_ in requests):
         towns.source(town)  # materialised here, once, before the processes load it
-    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
-    with ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context(method)) as pool:
+    with ProcessPoolExecutor(processes, mp_context=worker_context()) as pool:
         columns = zip(*requests)
         return list(pool.map(_place, *([towns.out] * len(requests), [seed] * len(requests),
                                        [params] * len(requests), *columns)))  # fmt: skip

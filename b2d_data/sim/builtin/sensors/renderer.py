@@ -547,7 +547,8 @@ class _Readback:
         if taken is not None:
             # Straight into mapped host memory: one wait for the GPU, then the arrays view what it wrote.
             buffer, mapped = taken
-            packable = [self.packer is not None and self.packer.packable(fbo.color_attachments[attachment], shape, dtype)
+            packer = self.packer
+            packable = [packer is not None and packer.packable(fbo.color_attachments[attachment], shape, dtype)
                         for fbo, attachment, shape, dtype, _ in self._reads]  # fmt: skip
             if not any(packable):  # (an agent's RGB cameras: nothing to pack, no copy through a GPU buffer)
                 for fbo, attachment, shape, dtype, offset in self._reads:

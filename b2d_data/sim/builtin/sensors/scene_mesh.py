@@ -156,7 +156,8 @@ class StaticCache(Generic[T]):
         self._items: OrderedDict[bytes, T] = OrderedDict()
 
     def get(self, mesh: TriangleMesh) -> T:
-        """What was built from ``mesh`` (built now if no kept mesh has its arrays); the least recent goes past ``keep``."""
+        """What was built from ``mesh`` (built now if no kept mesh has its arrays; the least recent one then goes
+        when there are more than ``keep``)."""
         digest = mesh_digest(mesh)
         item = self._items.get(digest)
         if item is None:

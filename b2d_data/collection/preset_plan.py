@@ -12,6 +12,7 @@ finds it.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import os
@@ -195,9 +196,7 @@ def place_all(towns: _Towns, seed: int, params: str, requests: Sequence[tuple[st
     for town in dict.fromkeys(town for town, *_ in requests):
         towns.source(town)  # materialised here, once, before the processes load it
     with ProcessPoolExecutor(processes, mp_context=worker_context()) as pool:
-        columns = zip(*requests)
-        return list(pool.map(_place, *([towns.out] * len(requests), [seed] * len(requests),
-                                       [params] * len(requests), *columns)))  # fmt: skip
+        return list(pool.map(functools.partial(_place, towns.out, seed, params), *zip(*requests)))
 
 
 def drawn_sides(slots: Sequence[Slot], params: str, seed: int) -> dict[int, str]:

@@ -550,20 +550,20 @@ class _Readback:
             packer = self.packer
             packable = [packer is not None and packer.packable(fbo.color_attachments[attachment], shape, dtype)
                         for fbo, attachment, shape, dtype, _ in self._reads]  # fmt: skip
-            if not any(packable):  # (an agent's RGB cameras: nothing to pack, no copy through a GPU buffer)
+            # Nothing to pack (an agent's RGB cameras): no detour through a GPU buffer.
+            if packer is None or not any(packable):
                 for fbo, attachment, shape, dtype, offset in self._reads:
                     self._read(fbo, attachment, shape, dtype, buffer, offset)
             else:
                 # One-byte targets packed by a compute pass, the rest read by glReadPixels, all into a GPU buffer
                 # that is then copied to the mapped one at once.
-                assert self.packer is not None
-                self.packer.begin(self._size)
+                packer.begin(self._size)
                 for (fbo, attachment, shape, dtype, offset), pack in zip(self._reads, packable):
                     if pack:
-                        self.packer.pack(fbo.color_attachments[attachment], offset)
+                        packer.pack(fbo.color_attachments[attachment], offset)
                     else:
-                        self._read(fbo, attachment, shape, dtype, self.packer.device, offset)
-                self.packer.copy_to(buffer, self._size)
+                        self._read(fbo, attachment, shape, dtype, packer.device, offset)
+                packer.copy_to(buffer, self._size)
             self.ctx.finish()
             return [self._view(mapped, shape, dtype, offset) for _, _, shape, dtype, offset in self._reads]
         # One block of host memory for the frame: its arrays are views of it.
@@ -686,8 +686,7 @@ class Renderer:
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._sky_vbo = self.ctx.buffer(sky_grid().tobytes())
-        self._static_vbo: moderngl.Buffer | None = None
-        self._static_ibo: moderngl.Buffer | None = None
+        # The static scene's tiles as the draws cull them (the uploaded scene's; probe_gpu_draw.py swaps them).
         self._static_culling = _Culling({})
         # Uniform values each program was last given: weather and lighting stay the same for every view of a frame.
         self._uniform_values: dict[int, dict[str, object]] = {}
@@ -699,8 +698,7 @@ class Renderer:
         self._noise.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._lightmap = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint8).tobytes(), dtype="f1")
         self._lightmap_rect = (0.0, 0.0, 1.0, 1.0)
-        self.static_triangles = 0
-        self._static: _StaticUpload | None = None
+        self._static: _StaticUpload | None = None  # the static scene drawn, one of those StaticCache keeps
         self._statics: StaticCache[_StaticUpload] = StaticCache(self._upload_static, _StaticUpload.release)
         # The sun's shadow map, drawn once per frame (the first render after the scene, actors or sun changed) and
         # read by every camera of it. llvmpipe draws a quarter of the texels: its shadow pass costs CPU.
@@ -755,8 +753,9 @@ class Renderer:
             if which == "sky":
                 vao = self.ctx.vertex_array(prog, [(self._sky_vbo, "2f", "in_xy")])
             elif which == "static":
-                vao = self.ctx.vertex_array(prog, [(self._static_vbo, *_vertex_layout(prog))],
-                                            index_buffer=self._static_ibo, index_element_size=4)  # fmt: skip
+                assert self._static is not None, "set_static() first"
+                vao = self.ctx.vertex_array(prog, [(self._static.vbo, *_vertex_layout(prog))],
+                                            index_buffer=self._static.ibo, index_element_size=4)  # fmt: skip
             else:
                 vao = self.ctx.vertex_array(prog, [(self._dyn_vbo, *_vertex_layout(prog))])
             self._vaos[key] = vao
@@ -777,9 +776,12 @@ class Renderer:
         self._static = upload
         self._static_culling = upload.culling
         self._drop_vaos("static")
-        self._static_vbo, self._static_ibo = upload.vbo, upload.ibo
-        self.static_triangles = upload.triangles
         self._scene_version += 1
+
+    @property
+    def static_triangles(self) -> int:
+        """Triangles of the static scene drawn (0 before any)."""
+        return self._static.triangles if self._static is not None else 0
 
     def _upload_static(self, mesh: TriangleMesh) -> _StaticUpload:
         mesh, batches = _batch_mesh(mesh, self.tile_size)

@@ -111,13 +111,10 @@ def run(args: argparse.Namespace) -> int:
     """Run the evaluation; 0 when every route has its record, 1 on a usage problem, 130 when interrupted."""
     from b2d_data.closed_loop import resolve_agent
     from b2d_data.closed_loop.evaluator import EvalConfig, EvalError, EvalInterrupted, run_evaluation
-    from b2d_data.collection.layout import single_thread_environment
 
     level = logging.WARNING if args.verbose == 0 else logging.INFO if args.verbose == 1 else logging.DEBUG
     logging.getLogger().setLevel(level)
     workers = _workers(args.workers)
-    if workers > 1:
-        single_thread_environment()  # several route processes share the cores: one BLAS/OpenMP thread each
     config = EvalConfig(
         agent=resolve_agent(args.agent), routes_file=args.routes, out=args.out, agent_config=args.agent_config, xodr=args.xodr,
         workers=workers, resume=args.resume, repetitions=args.repetitions, seed=args.seed,

@@ -58,6 +58,9 @@ from b2d_data.scenarios import statistics
 from b2d_data.scenarios.route_runner import MAX_TICKS
 from b2d_data.scenarios.route_xml import Route, read_route_argument, write_routes
 
+#: What an evaluation's fork server imports once for all its route processes.
+EVAL_PRELOAD = ("b2d_data.closed_loop.route_process", "b2d_data.sim.builtin.world")
+
 log = logging.getLogger(__name__)
 
 SETTINGS_FILE = "eval.json"
@@ -291,11 +294,9 @@ class _Pool:
     def __init__(self, workers: int, settings: RouteSettings) -> None:
         self.workers = workers
         self.settings = settings
-        # forkserver: a route process starts from a clean server with the simulator's modules loaded once, never
-        # from this process's threads and progress display; spawn where the platform has no fork server.
-        self.context = worker_context()
-        if self.context.get_start_method() == "forkserver":
-            self.context.set_forkserver_preload(["b2d_data.closed_loop.route_process", "b2d_data.sim.builtin.world"])
+        # A route process starts from a fork server with the simulator's modules loaded once. Several of them share
+        # the cores: one BLAS/OpenMP thread each; a single one keeps the library defaults for the agent's model.
+        self.context = worker_context(EVAL_PRELOAD, single_thread=workers > 1)
         self.reports = self.context.Queue()
         self.running: dict[str, tuple[Any, RouteTask, float]] = {}
 

@@ -33,7 +33,6 @@ from b2d_data.collection.job import (
 )
 from b2d_data.collection.layout import (
     raster_threads,
-    single_thread_environment,
     single_thread_worker,
     take_gpu_slot,
     worker_context,
@@ -211,7 +210,6 @@ class ProcessPoolBackend:
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        single_thread_environment()  # before the pool starts its processes
         return ProcessPoolExecutor(
             self.capacity,
             mp_context=self._context,

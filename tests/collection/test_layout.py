@@ -60,3 +60,35 @@ def test_route_processes_take_gpu_slots_in_turn(monkeypatch: pytest.MonkeyPatch)
     monkeypatch.setenv("B2D_EGL_DEVICE", "1")
     assert take_gpu_slot(counter) is None and "B2D_GPU_SLOT" not in os.environ and counter.value == 3
     assert take_gpu_slot(None) is None
+
+
+_WORKER_PROBE = """
+import os, sys
+from concurrent.futures import ProcessPoolExecutor
+from b2d_data.collection.layout import worker_context
+
+def probe():
+    return os.environ.get("OPENBLAS_NUM_THREADS"), "b2d_data.sim.builtin.world" in sys.modules
+
+if __name__ == "__main__":
+    os.environ.pop("OPENBLAS_NUM_THREADS", None)
+    # A first pool (as preset placement starts before the route processes) starts the fork server ...
+    with ProcessPoolExecutor(1, mp_context=worker_context()) as pool:
+        pool.submit(os.getpid).result()
+    # ... whose environment and modules every later pool's workers get.
+    with ProcessPoolExecutor(1, mp_context=worker_context()) as pool:
+        print(*pool.submit(probe).result())
+"""
+
+
+def test_workers_start_single_threaded_with_the_route_modules_loaded(tmp_path) -> None:
+    """Every worker of every pool runs with one BLAS thread (the fork server keeps the environment it started with,
+    so a setting made after the first pool would never arrive) and finds the route modules already imported."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "probe_workers.py"
+    script.write_text(_WORKER_PROBE)
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120, check=True)
+    assert out.stdout.split() == ["1", "True"]

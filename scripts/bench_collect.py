@@ -25,16 +25,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import os
 import tempfile
 import threading
 import time
 from collections import Counter, defaultdict
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures import wait as wait_futures
-from dataclasses import replace
+from concurrent.futures import Future
+from dataclasses import dataclass, replace
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -49,10 +48,7 @@ from b2d_data.collection import job as job_module
 from b2d_data.collection.layout import (
     auto_layout,
     count_gpus,
-    raster_threads,
-    single_thread_environment,
     single_thread_worker,
-    worker_context,
 )
 from b2d_data.collection.plan import plan_collection
 
@@ -256,16 +252,27 @@ def profile(config: Any, task: Any, frames: int, warmup: int) -> tuple[StageTime
     return timer, state["frames"], result
 
 
-def _pipeline_worker_init(
-    max_ticks: int, owner: int, log_level: int, reports: Any, pin: bool, workers: int, gpu_slots: Any
-) -> None:
-    from b2d_data.collection.backends import _worker_init
+_worker_ready = False
 
-    _worker_init(log_level, owner, reports, raster_threads(workers), gpu_slots)  # as b2d-collect's route processes
-    _cap_ticks(max_ticks)
-    if pin:  # experiment: one core per route process, so that every thread pool sizes itself to one core
-        cores = sorted(os.sched_getaffinity(0))
-        os.sched_setaffinity(0, {cores[os.getpid() % len(cores)]})
+
+@dataclass(frozen=True)
+class CappedRouteJob:
+    """The pipeline's route job: b2d-collect's, with the ticks capped at ``max_ticks`` (0: none) and, with ``pin``,
+    the process pinned to one core (so that every thread pool sizes itself to one core), from a process's first
+    route on. Handed to the pool with every task, as the job always is."""
+
+    max_ticks: int
+    pin: bool = False
+
+    def __call__(self, route: Any, town: Any, out: Path, config: Any, seed: int) -> Any:
+        global _worker_ready
+        if not _worker_ready:
+            _cap_ticks(self.max_ticks)
+            if self.pin:
+                cores = sorted(os.sched_getaffinity(0))
+                os.sched_setaffinity(0, {cores[os.getpid() % len(cores)]})
+            _worker_ready = True
+        return job_module.run_route_job(route, town, out, config, seed)
 
 
 def _busy_jiffies() -> tuple[int, int]:
@@ -276,27 +283,60 @@ def _busy_jiffies() -> tuple[int, int]:
 
 
 def pipeline(
-    config: Any, tasks: list[Any], workers: int, frames: int, pin: bool = False
+    config: Any, tasks: list[Any], workers: int, frames: int, pin: bool = False, town_affinity: bool = True
 ) -> tuple[int, float, float, list[Any]]:
-    """Run ``tasks`` on ``workers`` processes; returns (frames, wall seconds, busy cores on average, results)."""
-    single_thread_environment()
-    context = worker_context()
-    reports = context.Queue()  # the workers' progress reports, not read here
+    """Run ``tasks`` through b2d-collect's collection loop and process pool on ``workers`` processes, each task a
+    target of one attempt; returns (frames, wall seconds, busy cores on average, results)."""
+    from b2d_data.collection import run_log as rl
+    from b2d_data.collection import runner
+    from b2d_data.collection.backends import ProcessPoolBackend
+    from b2d_data.collection.job import JobResult
+    from b2d_data.collection.plan import CollectionPlan, ScenarioPlan
+
+    targets = [ScenarioPlan(t.scenario, 1, [replace(t, group=f"#{i}")], group=f"#{i}") for i, t in enumerate(tasks)]
+    out = Path(config.out)
+    session = runner._Session(CollectionPlan(targets, towns=[], settings={}), out, config,
+                              rl.RunLog(out / rl.LOG_FILE), [], None)  # fmt: skip
+    lookahead = runner.TOWN_LOOKAHEAD
+    runner.TOWN_LOOKAHEAD = lookahead if town_affinity else 0
     busy0, total0 = _busy_jiffies()
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_pipeline_worker_init,
-        initargs=(2 * frames if frames > 0 else 0, os.getpid(), logging.WARNING, reports, pin, workers,
-                  context.Value("i", 0)),
-    ) as pool:  # fmt: skip
-        futures = [pool.submit(job_module.run_route_job, t.route, t.town, config.out, config, t.seed) for t in tasks]
-        wait_futures(futures)
+    try:
+        session.run(ProcessPoolBackend(out, config, workers, job=CappedRouteJob(2 * max(frames, 0), pin)))
+    finally:
+        runner.TOWN_LOOKAHEAD = lookahead
     wall = time.perf_counter() - t0
+    ended = datetime.now(timezone.utc)
     busy1, total1 = _busy_jiffies()
     cores = os.cpu_count() or 1
     busy_cores = cores * (busy1 - busy0) / max(1, total1 - total0)
-    results = [f.result() for f in futures]
+    results = [JobResult.from_record(r) for r in session.records if r.get("event") == "attempt"]
+    for r in results:  # seconds from the pool's start to the route's start and end, for the timeline
+        r.timings["t_start"] = (datetime.fromisoformat(r.started) - ended).total_seconds() + wall
+        r.timings["t_end"] = (datetime.fromisoformat(r.finished) - ended).total_seconds() + wall
     return sum(r.frames for r in results), wall, busy_cores, results
+
+
+def timeline(results: list[Any], wall: float, workers: int) -> dict[str, float]:
+    """Where the route processes' time went, as shares of workers × wall: start-up before each process's first
+    route, the routes' set-up (first route of a process apart), their frame loops, and the tail after its last."""
+    by_pid: dict[int, list[Any]] = {}
+    for r in sorted(results, key=lambda r: r.timings["t_start"]):
+        by_pid.setdefault(r.pid, []).append(r)
+    total = workers * wall
+    setup = [r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results]
+    first = [rs[0].timings.get("setup", 0.0) + rs[0].timings.get("attach_rig", 0.0) for rs in by_pid.values()]
+    later = sum(setup) - sum(first)
+    return {
+        "start_up": sum(rs[0].timings["t_start"] for rs in by_pid.values()) / total,
+        "tail": (sum(wall - rs[-1].timings["t_end"] for rs in by_pid.values())
+                 + wall * max(0, workers - len(by_pid))) / total,  # fmt: skip
+        "setup_first_routes": sum(first) / total,
+        "setup_later_routes": later / total,
+        "loops": sum(max(0.0, r.duration - s) for r, s in zip(results, setup)) / total,
+        "first_route_setup_s": sum(first) / max(1, len(first)),
+        "later_route_setup_s": later / max(1, len(results) - len(first)),
+    }
 
 
 # ---------------------------------------------------------------------------------------------- main
@@ -328,6 +368,12 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=1600)
     parser.add_argument("--height", type=int, default=900)
     parser.add_argument("--town", default=None, help="generated town preset (default: the collection default)")
+    parser.add_argument("--preset", default=None, help="take the routes of a corpus preset instead (e.g. base; many "
+                        "towns), first attempts first")  # fmt: skip
+    parser.add_argument("--n-scale", type=float, default=1.0, help="with --preset: its share of the clips")
+    parser.add_argument("--town-affinity", choices=("on", "off", "both"), default="on",
+                        help="free workers take routes on their last town first, as b2d-collect does (both: a run "
+                        "without, then one with, in this call)")  # fmt: skip
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--pin", action="store_true", help="pin each route process to one core (experiment)")
     parser.add_argument("--profile-route", type=int, default=0,
@@ -354,40 +400,28 @@ def main() -> None:
         base = CollectConfig(out=Path(scratch), scenarios=scenarios, n=n, town=args.town, width=args.width,
                              height=args.height, seed=args.seed, workers=max(1, workers),
                              encode_workers=encode_workers)  # fmt: skip
+        if args.preset is not None:
+            base = replace(base, scenarios=(), n=None, preset=args.preset, n_scale=args.n_scale)
         planned = _tasks(base, max(1, args.routes, args.profile_route + 1))
         tasks = planned[: max(1, args.routes)]
         profile_config = replace(base, out=base.out / "profile")  # the profiled route may also have made a clip
+        modes = {"on": (True,), "off": (False,), "both": (False, True)}[args.town_affinity]
+        runs = {affinity: replace(base, out=base.out / f"pipeline-{'on' if affinity else 'off'}") for affinity in modes}
         for town in dict.fromkeys(t.town for t in planned):
-            for config in (base, profile_config):
+            for config in (profile_config, *runs.values()):
                 ensure_hdmap(load_map(town), config.out)
         if not args.skip_pipeline:
-            print(f"pipeline: {len(tasks)} routes × ≤{args.frames or 'all'} frames on {workers} route processes "
-                  f"(encoders per process: {base.resolved_encode_workers()}), {cores} cores, {gpus} GPU(s) ...",
-                  flush=True)  # fmt: skip
-            frames, wall, busy, results = pipeline(base, tasks, workers, args.frames, args.pin)
-            errors = [r.reason for r in results if r.status == "error"]
-            # Frame loops alone: each route's time less its set-up (map, scene, scenario placement, rig).
-            loops = sum(max(0.0, r.duration - r.timings.get("setup", 0.0) - r.timings.get("attach_rig", 0.0))
-                        for r in results)  # fmt: skip
-            figures["loop_fps"] = frames / (loops / workers) if loops > 0 else 0.0
-            # Where a route process's time went, per frame written (wall ms), and its set-up per route (s).
-            parts = {k: sum(r.timings.get(k, 0.0) for r in results) for k in ("sensors", "anno", "write")}
-            figures["pipeline_ms_per_frame"] = {
-                **{k: round(1e3 * v / max(1, frames), 1) for k, v in parts.items()},
-                "rest of the loop": round(1e3 * (loops - sum(parts.values())) / max(1, frames), 1),
-            }
-            # Route-process time outside any route: pool start-up, and the last routes' tail while others idle.
-            figures["route_share_of_wall"] = round(sum(r.duration for r in results) / (workers * wall), 3)
-            figures["setup_s_per_route"] = round(
-                sum(r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
-            figures["rig_s_per_route"] = round(sum(r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
-            # The first route of a process builds the town's scene, later ones of the same town reuse it: the first
-            # quartile shows what mounting costs without the build.
-            figures["rig_s_first_quartile"] = round(
-                sorted(r.timings.get("attach_rig", 0.0) for r in results)[len(results) // 4], 2)
-            figures.update(pipeline_frames=frames, pipeline_wall_s=round(wall, 2), pipeline_fps=frames / wall,
-                           busy_cores=round(busy, 2), workers=workers,
-                           encode_workers=base.resolved_encode_workers(), errors=errors)  # fmt: skip
+            towns = len({t.town.name for t in tasks})
+            for affinity, config in runs.items():
+                print(f"pipeline: {len(tasks)} routes on {towns} town(s) × ≤{args.frames or 'all'} frames on {workers} "
+                      f"route processes (encoders per process: {base.resolved_encode_workers()}), {cores} cores, "
+                      f"{gpus} GPU(s), town affinity {'on' if affinity else 'off'} ...", flush=True)  # fmt: skip
+                run = pipeline(config, tasks, workers, args.frames, args.pin, affinity)
+                if len(modes) > 1 and not affinity:
+                    figures["without_town_affinity"] = {**_pipeline_figures(*run, workers),
+                                                        "encode_workers": base.resolved_encode_workers()}
+                    _report_pipeline(figures["without_town_affinity"], cores)
+            figures.update(_pipeline_figures(*run, workers), encode_workers=base.resolved_encode_workers())
         if not args.skip_profile:
             profiled = args.profile_frames if args.profile_frames is not None else (args.frames or 40)
             print("profile: one route, every stage serial ...", flush=True)
@@ -398,6 +432,34 @@ def main() -> None:
     _report(figures)
     if args.json is not None:
         args.json.write_text(json.dumps(figures, indent=2, default=float))
+
+
+def _pipeline_figures(frames: int, wall: float, busy: float, results: list[Any], workers: int) -> dict[str, Any]:
+    """The pipeline's figures: frames/s over the wall and in the frame loops, where the route processes' time went."""
+    f: dict[str, Any] = {}
+    errors = [r.reason for r in results if r.status == "error"]
+    # Frame loops alone: each route's time less its set-up (map, scene, scenario placement, rig).
+    loops = sum(max(0.0, r.duration - r.timings.get("setup", 0.0) - r.timings.get("attach_rig", 0.0))
+                for r in results)  # fmt: skip
+    f["loop_fps"] = frames / (loops / workers) if loops > 0 else 0.0
+    # Where a route process's time went, per frame written (wall ms), and its set-up per route (s).
+    parts = {k: sum(r.timings.get(k, 0.0) for r in results) for k in ("sensors", "anno", "write")}
+    f["pipeline_ms_per_frame"] = {
+        **{k: round(1e3 * v / max(1, frames), 1) for k, v in parts.items()},
+        "rest of the loop": round(1e3 * (loops - sum(parts.values())) / max(1, frames), 1),
+    }
+    # Route-process time outside any route: pool start-up, and the last routes' tail while others idle.
+    f["route_share_of_wall"] = round(sum(r.duration for r in results) / (workers * wall), 3)
+    f["timeline"] = {k: round(v, 3) for k, v in timeline(results, wall, workers).items()}
+    f["setup_s_per_route"] = round(
+        sum(r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
+    f["rig_s_per_route"] = round(sum(r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
+    # The first route of a process builds the town's scene, later ones of the same town reuse it: the first
+    # quartile shows what mounting costs without the build.
+    f["rig_s_first_quartile"] = round(sorted(r.timings.get("attach_rig", 0.0) for r in results)[len(results) // 4], 2)
+    f.update(pipeline_frames=frames, pipeline_wall_s=round(wall, 2), pipeline_fps=frames / wall,
+             busy_cores=round(busy, 2), workers=workers, errors=errors)  # fmt: skip
+    return f
 
 
 def _report_profile(timer: StageTimer, frames: int, result: Any) -> dict[str, Any]:
@@ -436,6 +498,27 @@ def _report_profile(timer: StageTimer, frames: int, result: Any) -> dict[str, An
             "gpu_wait_ms_per_frame": gpu_ms}  # fmt: skip
 
 
+def _report_pipeline(f: dict[str, Any], cores: int) -> None:
+    print(
+        f"pipeline: {f['pipeline_frames']} frames in {f['pipeline_wall_s']:.1f} s = "
+        f"{f['pipeline_fps']:.2f} frames/s on {f['workers']} route processes "
+        f"(encoders each: {f['encode_workers']}); {f['busy_cores']:.1f} of {cores} cores busy on average"
+    )
+    print(f"  frame loops alone (route set-up left out): {f['loop_fps']:.2f} frames/s")
+    per_frame = ", ".join(f"{k} {v:.1f}" for k, v in f["pipeline_ms_per_frame"].items())
+    print(f"  route process wall ms per frame: {per_frame}; set-up {f['setup_s_per_route']:.1f} s per route, "
+          f"of which mounting the rig {f['rig_s_per_route']:.2f} s (first quartile {f['rig_s_first_quartile']:.2f} s)")
+    print(f"  route processes spent {100 * f['route_share_of_wall']:.0f} % of the wall in routes (the rest: "
+          "pool start-up, and the tail while the last routes finish)")
+    t = f["timeline"]
+    print(f"  route processes' time: start-up {100 * t['start_up']:.1f} %, set-up of first routes "
+          f"{100 * t['setup_first_routes']:.1f} % ({t['first_route_setup_s']:.2f} s each), of later routes "
+          f"{100 * t['setup_later_routes']:.1f} % ({t['later_route_setup_s']:.2f} s each), frame loops "
+          f"{100 * t['loops']:.1f} %, tail {100 * t['tail']:.1f} %")
+    if f["errors"]:
+        print(f"  {len(f['errors'])} route(s) failed with an error: {f['errors'][:3]}")
+
+
 def _report(f: dict[str, Any]) -> None:
     from b2d_data.sim.builtin.sensors.renderer import create_gl_context
 
@@ -456,19 +539,12 @@ def _report(f: dict[str, Any]) -> None:
         print(f"renderer: {gl}")
         print(f"bound: {bound:.1f} frames/s ({why})")
     if "pipeline_fps" in f:
-        print(
-            f"pipeline: {f['pipeline_frames']} frames in {f['pipeline_wall_s']:.1f} s = "
-            f"{f['pipeline_fps']:.2f} frames/s on {f['workers']} route processes "
-            f"(encoders each: {f['encode_workers']}); {f['busy_cores']:.1f} of {cores} cores busy on average"
-        )
-        print(f"  frame loops alone (route set-up left out): {f['loop_fps']:.2f} frames/s")
-        per_frame = ", ".join(f"{k} {v:.1f}" for k, v in f["pipeline_ms_per_frame"].items())
-        print(f"  route process wall ms per frame: {per_frame}; set-up {f['setup_s_per_route']:.1f} s per route, "
-              f"of which mounting the rig {f['rig_s_per_route']:.2f} s (first quartile {f['rig_s_first_quartile']:.2f} s)")
-        print(f"  route processes spent {100 * f['route_share_of_wall']:.0f} % of the wall in routes (the rest: "
-              "pool start-up, and the tail while the last routes finish)")
-        if f["errors"]:
-            print(f"  {len(f['errors'])} route(s) failed with an error: {f['errors'][:3]}")
+        if "without_town_affinity" in f:
+            ratio = f["pipeline_fps"] / f["without_town_affinity"]["pipeline_fps"]
+            f["town_affinity_ratio"] = ratio
+            print(f"town affinity: {f['without_town_affinity']['pipeline_fps']:.2f} → {f['pipeline_fps']:.2f} frames/s "
+                  f"(×{ratio:.3f})")
+        _report_pipeline(f, cores)
         if "bound_fps" in f:
             f["ratio"] = f["pipeline_fps"] / f["bound_fps"]
             print(f"ratio to the bound: {f['ratio']:.2f} (route set-up included)")

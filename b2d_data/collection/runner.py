@@ -14,6 +14,7 @@ import os
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
+from itertools import islice
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -62,6 +63,10 @@ from b2d_data.collection.towns import (
 log = logging.getLogger(__name__)
 
 SUMMARY_FILE = "summary.json"
+#: Targets looked at for a route on the town that a free worker has just left (see ``_Session._next_task``).
+TOWN_LOOKAHEAD = 64
+#: Times in a row a target may be passed over for a route on a free worker's town.
+TOWN_PASSES = 64
 #: Times a route whose worker died (killed, node lost) is run again in the same session before it counts as tried.
 LOST_WORKER_RETRIES = 2
 
@@ -363,22 +368,42 @@ class _Session:
             if str(r.get("route_id")) in mine and (r.get("ticks") or r.get("frames"))
         ]
         self._last_report: float | None = None
+        #: Tasks in a row given to a free worker for its town ahead of the target whose turn it was.
+        self._passed = 0
 
     def _clips(self) -> int:
         return sum(min(self.done[s], self.target[s]) for s in self.done)
 
-    def _next_task(self, order: deque[str]) -> RouteTask | None:
+    def _wants(self, key: str) -> bool:
+        return self.target[key] - self.done[key] - self.in_flight[key] > 0 and bool(self.pending[key])
+
+    def _next_task(self, order: deque[str], town: str | None = None) -> RouteTask | None:
         """Round robin over the targets (scenarios, a preset's clips) that still need clips and have routes left (none
-        once the disk is full)."""
+        once the disk is full).
+
+        ``town``: where the free worker ran its last route. Of the next ``TOWN_LOOKAHEAD`` targets in turn, the first
+        whose next route is on that town goes first, so that the worker keeps the town's scene (map, meshes, GPU
+        buffers; a route on another town builds them again); never more than ``TOWN_PASSES`` times in a row past the
+        target whose turn it is. Each target's routes keep their order, so the clips are the same.
+        """
         if self.disk_full:
             return None
         for _ in range(len(order)):
-            scenario = order[0]
+            if self._wants(order[0]):
+                break
             order.rotate(-1)
-            need = self.target[scenario] - self.done[scenario] - self.in_flight[scenario]
-            if need > 0 and self.pending[scenario]:
-                return self.pending[scenario].popleft()
-        return None
+        else:
+            return None
+        pick = 0
+        if town is not None and self._passed < TOWN_PASSES:
+            same = (j for j, key in enumerate(islice(order, TOWN_LOOKAHEAD))
+                    if self._wants(key) and self.pending[key][0].town.name == town)  # fmt: skip
+            pick = next(same, 0)
+        self._passed = self._passed + 1 if pick else 0
+        key = order[pick]
+        del order[pick]
+        order.append(key)
+        return self.pending[key].popleft()
 
     def report(self, result: JobResult | None = None, force: bool = False) -> None:
         """Call the progress callback: always with a result or ``force``, else when the last call is
@@ -410,17 +435,20 @@ class _Session:
         if backend is None:
             backend = make_backend(self.out, self.config, self.frames_reported)
         order = deque(self.target)
+        freed: deque[str] = deque()  # towns of the routes just finished: their workers are the free ones
         abandon = False
         try:
             while True:
                 while backend.running() < backend.capacity:
-                    task = self._next_task(order)
+                    task = self._next_task(order, freed.popleft() if freed else None)
                     if task is None:
                         break
                     self._launch(backend, task)
+                freed.clear()
                 if backend.running() == 0:
                     break
                 for task, result in backend.wait(timeout=REFRESH_SECONDS):
+                    freed.append(task.town.name)
                     self.in_flight[task.key] -= 1
                     if result.note in LOST_NOTES:
                         self.lost += 1

@@ -6,9 +6,12 @@
    stages nested in it): physics, expert, actor meshes and ray scenes, LiDAR, radar, draw + GPU wait, read-back,
    annotation, every encoder, file writes, and the rest of the route loop (scenarios, criteria). The first
    ``--warmup`` frames (shader compilation, static scene upload) are left out.
-2. **Pipeline**: ``--routes`` routes of the same collection on ``--workers`` route processes (``auto``: the
-   layout ``b2d-collect --workers auto`` picks), each with the encoder layout of that choice; frames written over
-   the wall time, route set-up included, and the machine's CPU use (from /proc/stat).
+2. **Pipeline**: ``--routes`` routes of the same collection (or of a corpus preset, ``--preset``: many towns)
+   through b2d-collect's own collection loop and process pool on ``--workers`` route processes (``auto``: the
+   layout ``b2d-collect --workers auto`` picks), each route a target of one attempt; frames written over the wall
+   time, route set-up included, the machine's CPU use (from /proc/stat), and where the route processes' time went
+   (start-up, set-up of first and later routes, frame loops, the tail while the last routes finish).
+   ``--town-affinity both`` runs it without and then with the loop's preference for a free worker's last town.
 
 The bound is the frames/s the machine would reach if its busiest resource did nothing but the unavoidable
 per-frame work measured in step 1: the CPU (cores / CPU-seconds per frame) or, with a hardware renderer, the GPU
@@ -16,6 +19,8 @@ per-frame work measured in step 1: the CPU (cores / CPU-seconds per frame) or, w
 
     python scripts/bench_collect.py --frames 8 --routes 2 --workers 2       # the 2-core CPU machine
     python scripts/bench_collect.py --frames 60 --routes 32 --workers auto  # a GPU machine
+    python scripts/bench_collect.py --preset base --n-scale 0.06 --routes 60 --frames 100 --skip-profile \
+        --town-affinity both                                                # base's mix of towns
 
 ``--frames`` caps each route (0: run the routes to their end); capped routes end as TickRuntime failures and
 their clips are dropped after being written, which costs the same encoding work.

@@ -211,6 +211,8 @@ def _encoder_init(owner_pid: int) -> None:
 
 
 _ENCODERS: dict[int, ProcessPoolExecutor] = {}
+#: What an encoder process needs (a route process's own fork server would otherwise import the whole route's modules).
+ENCODER_PRELOAD = ("b2d_data.writers.frame_jobs",)
 
 
 def encoder_pool(workers: int) -> ProcessPoolExecutor | None:
@@ -223,7 +225,7 @@ def encoder_pool(workers: int) -> ProcessPoolExecutor | None:
         pool = None
     if pool is None:
         pool = ProcessPoolExecutor(
-            workers, mp_context=worker_context(), initializer=_encoder_init, initargs=(os.getpid(),)
+            workers, mp_context=worker_context(ENCODER_PRELOAD), initializer=_encoder_init, initargs=(os.getpid(),)
         )
         _ENCODERS[workers] = pool
         # When this process is itself a pool worker, its exit joins its children; the encoders live until their owner

@@ -322,6 +322,16 @@ def pipeline(
     return sum(r.frames for r in results), wall, busy_cores, results
 
 
+def route_setup_s(result: Any) -> float:
+    """A route's set-up in seconds (map, scene, scenario placement, mounting the rig): its time outside the frames."""
+    return result.timings.get("setup", 0.0) + result.timings.get("attach_rig", 0.0)
+
+
+def loop_s(result: Any) -> float:
+    """A route's frame loop in seconds: its time less its set-up."""
+    return max(0.0, result.duration - route_setup_s(result))
+
+
 def timeline(results: list[Any], wall: float, workers: int) -> dict[str, float]:
     """Where the route processes' time went, as shares of workers × wall: start-up before each process's first
     route, the routes' set-up (first route of a process apart), their frame loops, and the tail after its last."""
@@ -329,16 +339,15 @@ def timeline(results: list[Any], wall: float, workers: int) -> dict[str, float]:
     for r in sorted(results, key=lambda r: r.timings["t_start"]):
         by_pid.setdefault(r.pid, []).append(r)
     total = workers * wall
-    setup = [r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results]
-    first = [rs[0].timings.get("setup", 0.0) + rs[0].timings.get("attach_rig", 0.0) for rs in by_pid.values()]
-    later = sum(setup) - sum(first)
+    first = [route_setup_s(rs[0]) for rs in by_pid.values()]
+    later = sum(map(route_setup_s, results)) - sum(first)
     return {
         "start_up": sum(rs[0].timings["t_start"] for rs in by_pid.values()) / total,
         "tail": (sum(wall - rs[-1].timings["t_end"] for rs in by_pid.values())
                  + wall * max(0, workers - len(by_pid))) / total,  # fmt: skip
         "setup_first_routes": sum(first) / total,
         "setup_later_routes": later / total,
-        "loops": sum(max(0.0, r.duration - s) for r, s in zip(results, setup)) / total,
+        "loops": sum(map(loop_s, results)) / total,
         "first_route_setup_s": sum(first) / max(1, len(first)),
         "later_route_setup_s": later / max(1, len(results) - len(first)),
     }
@@ -443,9 +452,7 @@ def _pipeline_figures(frames: int, wall: float, busy: float, results: list[Any],
     """The pipeline's figures: frames/s over the wall and in the frame loops, where the route processes' time went."""
     f: dict[str, Any] = {}
     errors = [r.reason for r in results if r.status == "error"]
-    # Frame loops alone: each route's time less its set-up (map, scene, scenario placement, rig).
-    loops = sum(max(0.0, r.duration - r.timings.get("setup", 0.0) - r.timings.get("attach_rig", 0.0))
-                for r in results)  # fmt: skip
+    loops = sum(map(loop_s, results))  # the frame loops alone
     f["loop_fps"] = frames / (loops / workers) if loops > 0 else 0.0
     # Where a route process's time went, per frame written (wall ms), and its set-up per route (s).
     parts = {k: sum(r.timings.get(k, 0.0) for r in results) for k in ("sensors", "anno", "write")}
@@ -456,8 +463,7 @@ def _pipeline_figures(frames: int, wall: float, busy: float, results: list[Any],
     # Route-process time outside any route: pool start-up, and the last routes' tail while others idle.
     f["route_share_of_wall"] = round(sum(r.duration for r in results) / (workers * wall), 3)
     f["timeline"] = {k: round(v, 3) for k, v in timeline(results, wall, workers).items()}
-    f["setup_s_per_route"] = round(
-        sum(r.timings.get("setup", 0.0) + r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
+    f["setup_s_per_route"] = round(sum(map(route_setup_s, results)) / len(results), 2)
     f["rig_s_per_route"] = round(sum(r.timings.get("attach_rig", 0.0) for r in results) / len(results), 2)
     # The first route of a process builds the town's scene, later ones of the same town reuse it: the first
     # quartile shows what mounting costs without the build.

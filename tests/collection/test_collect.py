@@ -579,7 +579,9 @@ def test_kill_9_with_worker_processes_leaves_no_orphan_and_resumes(short_routes,
             if len([r for r in records if r.get("event") == "start"]) >= 2 and len(helpers) >= 3:
                 break
             time.sleep(0.05)
-        time.sleep(1.0)  # both workers are inside their routes now
+        # Both routes are launched; kill at once: a 22 m route without sensors can end within a second
+        # (a route process's modules are imported before it starts), and the test needs both mid-route.
+        time.sleep(0.1)
         helpers |= descendants(proc.pid)
         assert proc.poll() is None, "the collection ended before it could be killed"
         os.kill(proc.pid, signal.SIGKILL)

@@ -395,7 +395,7 @@ def main() -> None:
     parser.add_argument("--skip-profile", action="store_true")
     parser.add_argument("--skip-pipeline", action="store_true")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures to this file")
-    parser.add_argument("--out", type=Path, default=None, help="scratch folder (default: a temporary one)")
+    parser.add_argument("--out", type=Path, default=None, help="folder for the scratch folder (default: the system's temporary folder)")
     args = parser.parse_args()
 
     cores = os.cpu_count() or 1
@@ -406,6 +406,8 @@ def main() -> None:
         layout.encode_workers if args.workers == "auto" else None)  # fmt: skip
     scenarios = tuple(args.scenario) or ("HardBreakRoute",)
     figures: dict[str, Any] = {"cores": cores, "gpus": gpus, "width": args.width, "height": args.height}
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=args.out) as scratch:
         from b2d_data.collection.job import CollectConfig
         from b2d_data.collection.towns import ensure_hdmap, load_map

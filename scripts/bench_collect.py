@@ -395,7 +395,8 @@ def main() -> None:
     parser.add_argument("--skip-profile", action="store_true")
     parser.add_argument("--skip-pipeline", action="store_true")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures to this file")
-    parser.add_argument("--out", type=Path, default=None, help="folder for the scratch folder (default: the system's temporary folder)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where the scratch folder goes (default: the system's temporary folder)")
     args = parser.parse_args()
 
     cores = os.cpu_count() or 1

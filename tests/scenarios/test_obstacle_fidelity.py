@@ -89,6 +89,22 @@ def test_an_obstacle_beyond_a_junction_stops_before_it(town, scenario_type):
     assert obstacle.transform.location.distance_2d(expected[-1].transform.location) < 1e-6
 
 
+@pytest.mark.parametrize("scenario_type", ("HazardAtSideLane", "HazardAtSideLaneTwoWays"))
+def test_the_bicycles_ride_ends_before_a_junction(town, scenario_type):
+    # A deviation of ours (hazard_side_lane.py): the ride (LB2.0: bicycle_drive_distance, then the hand brake)
+    # ends junction_margin (3 m) before the junction the front bicycle's lane enters. If that junction's first
+    # point is J m on (1 m steps), its lane ends after J - 1 m, so both bicycles ride J - 1 - 3 m.
+    _, scenario = build(town, scenario_type, bicycle_drive_distance="5000")
+    found = first_junction_ahead(scenario._waypoints[-1], 5000.0)
+    assert found is not None
+    _, metres = found
+    assert metres > 60.0  # the layout keeps 130 m after the trigger junction-free: the bicycles start on it
+    assert scenario.ride() == pytest.approx(metres - 1.0 - 3.0)
+    # a ride that ends before the junction is the drawn one
+    _, short = build(town, scenario_type, bicycle_drive_distance="20")
+    assert short.ride() == 20.0
+
+
 def test_the_accident_cars_and_the_end_stop_before_a_junction(town):
     # route_obstacles.py Accident: both crashed cars (police + 10, + 6) and the end (2nd car + 50) are
     # _move_waypoint_forward walks. The police car stands 1 m before the junction (previous test), so no step is

@@ -16,12 +16,13 @@ from b2d_data.scenarios.catalog.layout import (
     two_way_single,
 )
 from b2d_data.scenarios.catalog.road_geometry import (
+    first_junction_ahead,
     move_along,
     offset_transform,
     opposite_driving_neighbour,
     same_direction_driving_neighbour,
 )
-from b2d_data.scenarios.controllers import LaneFollowingAgent, follow_lane, park
+from b2d_data.scenarios.controllers import PATH_STEP, LaneFollowingAgent, follow_lane, park
 from b2d_data.scenarios.criteria import SWITCH_WRONG_DIRECTION
 from b2d_data.scenarios.framework import Scenario, ScenarioContext, ScenarioSetupError, ScenarioStatus, register
 from b2d_data.scenarios.triggers import DistanceTrigger, DriveDistance, Timer, is_in_front
@@ -37,6 +38,13 @@ class HazardAtSideLane(Scenario):
     At the trigger the background leaves ``distance + 29`` m free and keeps 30 m extra space; 5 s after the ego
     came within 50 m of the first bicycle the background speed is capped at ``speed``; the scenario ends once the
     ego is ahead of the last bicycle and drove 50 m more, or after 240 s.
+
+    One deviation from LB2.0: a ride that would take the bicycles into a junction ends ``junction_margin`` m before
+    it (:meth:`ride`). A generated route ends before the junction that follows the scenario's stretch, so bicycles
+    riding on would stop beyond the route's end, where no ego passes them and the scenario never ends: parked for
+    good past a junction's exit, they held a background car at the junction's entry (waiting for room there, as
+    TM's cars do), and the ego behind it, 10 m short of the end, until TickRuntime (base's routes 8300 and 8600 on
+    Town101).
     """
 
     xml_type = "HazardAtSideLane"
@@ -45,6 +53,8 @@ class HazardAtSideLane(Scenario):
     trigger_distance = 50.0
     wait_duration = 5.0
     end_distance = 50.0
+    #: Metres between the front bicycle's stop and the junction its ride would have entered.
+    junction_margin = 3.0
 
     def __init__(self, ctx: ScenarioContext) -> None:
         super().__init__(ctx)
@@ -95,16 +105,27 @@ class HazardAtSideLane(Scenario):
             park(self.ctx.sim, actor_id)
             self.bicycles.append(actor_id)
 
+    def ride(self) -> float:
+        """Metres each bicycle rides: ``bicycle_drive_distance``, or less where the front bicycle's lane enters a
+        junction sooner (both ride the same distance, keeping their gap: they ignore each other)."""
+        reach = self.drive_distance + self.junction_margin + PATH_STEP
+        found = first_junction_ahead(self._waypoints[-1], reach, PATH_STEP)
+        if found is None:
+            return self.drive_distance
+        # the junction begins after the last lane point outside it, one step before its first point
+        return max(0.0, min(self.drive_distance, found[1] - PATH_STEP - self.junction_margin))
+
     def start(self, snapshot: Snapshot) -> None:
         """Clear the road ahead and start both bicycles."""
         bg = self.ctx.sim.background
         bg.leave_space_in_front(self.distance + 29.0)
         bg.change_road_behavior(extra_space=30.0)
+        ride = self.ride()
         for actor_id, wp in zip(self.bicycles, self._waypoints):
             path = follow_lane(wp, self.drive_distance + 30.0)
             self._agents.append(LaneFollowingAgent(
                 self.ctx.sim, actor_id, path, self.bicycle_speed / 3.6, lateral_offset=self._lateral(wp.lane_width),
-                max_distance=self.drive_distance, accel=1.0, ignore=self.bicycles,
+                max_distance=ride, accel=1.0, ignore=self.bicycles,
             ))  # fmt: skip
 
     def update(self, snapshot: Snapshot) -> ScenarioStatus:
